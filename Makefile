@@ -1,0 +1,31 @@
+# railcal: two commands do everything on a fresh machine.
+#   make demo   creates .venv, installs, runs the whole job on the built-in example
+#   make test   creates .venv if needed, installs, runs the test suite
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test venv clean bench
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/railcal demo --out demo_output
+
+# pytest exits 5 when it collects no test; that is a failure of the suite, not a pass.
+test: $(STAMP)
+	$(PY) -m pytest -q tests; rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "pytest collected no tests" >&2; exit 1; fi; exit $$rc
+
+bench: $(STAMP)
+	$(PY) scripts/bench_fdd.py
+
+clean:
+	rm -rf $(VENV) demo_output build *.egg-info
