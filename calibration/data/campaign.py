@@ -1,0 +1,610 @@
+"""Measurement campaigns (shared/spec/campaign-format.md, v1): read, check, write.
+
+Reading is strict: anything malformed raises :class:`CampaignError` naming the file and
+the line, column or key. Unit conversion and each sensor's ``scale`` are applied once,
+here. Runs are read one at a time (:meth:`Campaign.iter_runs`) so a campaign of any size
+streams through in the memory of one run.
+
+Choices where the spec leaves room:
+* A run-file column that is neither declared in campaign.toml nor a known column
+  (``time``, ``distance``, ``speed``, ``<sensor>_clipped``) is an error, not a warning:
+  a misspelt sensor column would otherwise silently drop that sensor's data.
+* Unknown keys in campaign.toml are ignored with a warning, as the spec says.
+* Gaps (a time step over 1.5 sampling intervals) are reported and split the run into
+  contiguous blocks; nothing is interpolated. NaN and clipped samples are marked
+  invalid per channel.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import os
+import re
+import shutil
+import tempfile
+import tomllib
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator, Mapping
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import tomli_w
+
+from .errors import CampaignError
+from .units import BODIES, QUANTITIES, ROTATIONS, TRANSLATIONS, UNITS, si_factor
+
+FORMAT = "railcal-campaign/1"
+KINDS = ("in_service", "stationary_excitation")
+NAME_RE = re.compile(r"^[A-Za-z0-9_]+$")
+TRACK_BANDS = ("D1", "D2", "raw")
+GAP_FACTOR = 1.5  # a time step longer than this many sampling intervals is a gap
+_TOP_KEYS = {"format", "kind", "name", "vehicle", "priors", "sensors", "sampling", "excitation"}
+_SENSOR_KEYS = {"name", "quantity", "unit", "body", "direction", "position", "scale"}
+_GEOMETRY_KEYS = {"bogie_semi_spacing", "semi_wheelbase", "length", "width", "height"}
+
+
+# ----------------------------------------------------------------------------- metadata
+@dataclass(frozen=True)
+class Sensor:
+    name: str
+    quantity: str
+    unit: str
+    body: str
+    direction: str
+    position: tuple[float, float, float]  # [m] vehicle frame
+    scale: float = 1.0
+
+    @property
+    def si_factor(self) -> float:
+        """Multiply the raw column by this to get SI units (scale and unit together)."""
+        return self.scale * si_factor(self.unit)
+
+    def to_toml(self) -> dict:
+        return {"name": self.name, "quantity": self.quantity, "unit": self.unit, "body": self.body,
+                "direction": self.direction, "position": list(self.position), "scale": self.scale}
+
+
+@dataclass(frozen=True)
+class Prior:
+    nominal: float
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class Excitation:
+    sensor: str
+    position: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CampaignMeta:
+    """Everything campaign.toml says."""
+
+    kind: str
+    name: str
+    vehicle: str
+    sensors: tuple[Sensor, ...]
+    sampling_rate: float
+    geometry: Mapping[str, float] = field(default_factory=dict)
+    priors: Mapping[str, Prior] = field(default_factory=dict)
+    excitation: Excitation | None = None
+
+    def sensor(self, name: str) -> Sensor:
+        for s in self.sensors:
+            if s.name == name:
+                return s
+        raise KeyError(f"no sensor {name!r}; have {', '.join(s.name for s in self.sensors)}")
+
+    def to_toml(self) -> dict:
+        d: dict = {"format": FORMAT, "kind": self.kind, "name": self.name}
+        vehicle: dict = {"name": self.vehicle, **{k: float(v) for k, v in self.geometry.items()}}
+        d["vehicle"] = vehicle
+        if self.priors:
+            d["priors"] = {k: {"nominal": p.nominal, "low": p.low, "high": p.high} for k, p in self.priors.items()}
+        d["sensors"] = [s.to_toml() for s in self.sensors]
+        d["sampling"] = {"rate": self.sampling_rate}
+        if self.excitation is not None:
+            d["excitation"] = {"sensor": self.excitation.sensor, "position": list(self.excitation.position)}
+        return d
+
+
+def _number(value, path, key) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise CampaignError(f"expected a finite number, got {value!r}", path=path, key=key)
+    return float(value)
+
+
+def _position(value, path, key) -> tuple[float, float, float]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise CampaignError(f"expected [x, y, z] in metres, got {value!r}", path=path, key=key)
+    return tuple(_number(v, path, key) for v in value)  # type: ignore[return-value]
+
+
+def parse_meta(data: dict, path: Path) -> CampaignMeta:
+    """Check and convert the parsed campaign.toml; ``path`` is named in every message."""
+    for k in sorted(set(data) - _TOP_KEYS):
+        warnings.warn(f"{path}: unknown key '{k}' ignored", stacklevel=2)
+    fmt = data.get("format")
+    if fmt != FORMAT:
+        raise CampaignError(f"expected format = \"{FORMAT}\", got {fmt!r}", path=path, key="format")
+    kind = data.get("kind")
+    if kind not in KINDS:
+        raise CampaignError(f"expected one of {', '.join(KINDS)}, got {kind!r}", path=path, key="kind")
+    vehicle = data.get("vehicle", {})
+    vehicle_name = data.get("vehicle") if isinstance(data.get("vehicle"), str) else ""
+    geometry: dict[str, float] = {}
+    if isinstance(vehicle, dict):
+        vehicle_name = str(vehicle.get("name", vehicle_name))
+        for k, v in vehicle.items():
+            if k in _GEOMETRY_KEYS:
+                geometry[k] = _number(v, path, f"vehicle.{k}")
+                if geometry[k] <= 0:
+                    raise CampaignError(f"must be > 0 m, got {v}", path=path, key=f"vehicle.{k}")
+            elif k != "name":
+                warnings.warn(f"{path}: unknown key 'vehicle.{k}' ignored", stacklevel=2)
+    priors: dict[str, Prior] = {}
+    for pname, pr in (data.get("priors") or {}).items():
+        key = f"priors.{pname}"
+        if not isinstance(pr, dict):
+            raise CampaignError("expected a table with nominal, low, high", path=path, key=key)
+        missing = [k for k in ("nominal", "low", "high") if k not in pr]
+        if missing:
+            raise CampaignError(f"missing {', '.join(missing)}", path=path, key=key)
+        p = Prior(*(_number(pr[k], path, f"{key}.{k}") for k in ("nominal", "low", "high")))
+        if not (p.low < p.high):
+            raise CampaignError(f"low = {p.low} must be below high = {p.high} (infeasible bounds)", path=path,
+                                key=key)
+        if not (p.low <= p.nominal <= p.high):
+            raise CampaignError(f"nominal = {p.nominal} outside [low, high] = [{p.low}, {p.high}]", path=path,
+                                key=key)
+        priors[pname] = p
+    raw_sensors = data.get("sensors")
+    if not isinstance(raw_sensors, list) or not raw_sensors:
+        raise CampaignError("expected at least one [[sensors]] table", path=path, key="sensors")
+    sensors = []
+    seen: dict[str, int] = {}
+    for i, s in enumerate(raw_sensors):
+        key = f"sensors[{i}]"
+        if not isinstance(s, dict):
+            raise CampaignError("expected a table", path=path, key=key)
+        for k in sorted(set(s) - _SENSOR_KEYS):
+            warnings.warn(f"{path}: unknown key '{key}.{k}' ignored", stacklevel=2)
+        for k in ("name", "quantity", "unit", "body", "direction", "position"):
+            if k not in s:
+                raise CampaignError(f"missing '{k}'", path=path, key=key)
+        name = s["name"]
+        if not isinstance(name, str) or not NAME_RE.match(name):
+            raise CampaignError(f"sensor name {name!r} must match [A-Za-z0-9_]+", path=path, key=f"{key}.name")
+        if name in ("time", "distance", "speed") or name.endswith("_clipped"):
+            raise CampaignError(f"sensor name {name!r} is reserved", path=path, key=f"{key}.name")
+        if name in seen:
+            raise CampaignError(f"sensor name '{name}' declared twice (also sensors[{seen[name]}])", path=path,
+                                key=f"{key}.name")
+        seen[name] = i
+        q, unit = s["quantity"], s["unit"]
+        if q not in QUANTITIES:
+            raise CampaignError(f"unknown quantity {q!r}; expected one of {', '.join(QUANTITIES)}", path=path,
+                                key=f"{key}.quantity")
+        if unit not in UNITS:
+            raise CampaignError(f"unknown unit {unit!r}; expected one of {', '.join(UNITS)}", path=path,
+                                key=f"{key}.unit")
+        if UNITS[unit][0] != q:
+            raise CampaignError(f"unit {unit!r} is not a unit of {q}", path=path, key=f"{key}.unit")
+        if s["body"] not in BODIES:
+            raise CampaignError(f"unknown body {s['body']!r}; expected one of {', '.join(BODIES)}", path=path,
+                                key=f"{key}.body")
+        direction = s["direction"]
+        allowed = ROTATIONS if q == "angular_velocity" else TRANSLATIONS
+        if direction not in allowed:
+            raise CampaignError(f"direction {direction!r} not valid for {q}; expected one of {', '.join(allowed)}",
+                                path=path, key=f"{key}.direction")
+        scale = _number(s.get("scale", 1.0), path, f"{key}.scale")
+        if scale == 0:
+            raise CampaignError("scale must not be zero", path=path, key=f"{key}.scale")
+        sensors.append(Sensor(name, q, unit, s["body"], direction, _position(s["position"], path, f"{key}.position"),
+                              scale))
+    sampling = data.get("sampling")
+    if not isinstance(sampling, dict) or "rate" not in sampling:
+        raise CampaignError("expected [sampling] with rate [Hz]", path=path, key="sampling.rate")
+    rate = _number(sampling["rate"], path, "sampling.rate")
+    if rate <= 0:
+        raise CampaignError(f"must be > 0 Hz, got {rate}", path=path, key="sampling.rate")
+    excitation = None
+    if kind == "stationary_excitation":
+        ex = data.get("excitation")
+        if not isinstance(ex, dict) or "sensor" not in ex:
+            raise CampaignError("a stationary_excitation campaign needs [excitation] sensor = ...", path=path,
+                                key="excitation")
+        if ex["sensor"] not in seen:
+            raise CampaignError(f"names sensor {ex['sensor']!r}, which is not declared in [[sensors]]", path=path,
+                                key="excitation.sensor")
+        excitation = Excitation(ex["sensor"], _position(ex.get("position", [0, 0, 0]), path, "excitation.position"))
+    return CampaignMeta(kind, str(data.get("name", "")), vehicle_name, tuple(sensors), rate, geometry, priors,
+                        excitation)
+
+
+# --------------------------------------------------------------------------------- runs
+@dataclass(frozen=True)
+class Gap:
+    after_time: float  # [s] last sample before the gap
+    before_time: float  # [s] first sample after it
+
+    @property
+    def duration(self) -> float:
+        return self.before_time - self.after_time
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run in SI units. ``valid[name]`` is False where a sample is missing or clipped;
+    ``blocks`` are [start, stop) index ranges between gaps."""
+
+    run_id: str
+    path: Path
+    time: np.ndarray
+    channels: Mapping[str, np.ndarray]
+    valid: Mapping[str, np.ndarray]
+    blocks: tuple[tuple[int, int], ...]
+    gaps: tuple[Gap, ...]
+    distance: np.ndarray | None = None
+    speed: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.time.size
+
+
+def _line_numbers(path: Path) -> np.ndarray:
+    """File line number (1-based) of each data row of a CSV (header and comments skipped)."""
+    lines = []
+    header_seen = False
+    with open(path, "rb") as f:
+        for i, raw in enumerate(f, start=1):
+            if raw.lstrip().startswith(b"#") or not raw.strip():
+                continue
+            if not header_seen:
+                header_seen = True
+                continue
+            lines.append(i)
+    return np.asarray(lines)
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    try:
+        with open(path, "rb") as f:
+            head = b""
+            for raw in f:
+                if raw.lstrip().startswith(b"#") or not raw.strip():
+                    continue
+                head = raw
+                break
+    except OSError as e:
+        raise CampaignError(f"cannot read: {e.strerror}", path=path) from None
+    if not head:
+        raise CampaignError("no header row", path=path)
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError:
+        raise CampaignError("not UTF-8 text", path=path) from None
+    names = [c.strip() for c in head.decode().strip().split(",")]
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise CampaignError(f"duplicate column(s) {', '.join(dup)} in the header", path=path, line=1)
+    try:
+        df = pd.read_csv(path, comment="#", dtype=str, skip_blank_lines=True, engine="c",
+                         keep_default_na=False, na_filter=False)
+    except pd.errors.ParserError as e:
+        m = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(e))
+        if m:
+            # pandas counts lines without comments; map back to the file's own numbering
+            lines = _line_numbers(path)
+            idx = int(m.group(2)) - 2
+            line = int(lines[idx]) if 0 <= idx < lines.size else None
+            raise CampaignError(f"expected {m.group(1)} comma-separated fields, found {m.group(3)}", path=path,
+                                line=line) from None
+        raise CampaignError(f"cannot parse CSV: {e}", path=path) from None
+    df.columns = [c.strip() for c in df.columns]
+    return df
+
+
+def _to_float_columns(df: pd.DataFrame, path: Path, is_csv: bool) -> dict[str, np.ndarray]:
+    out = {}
+    for col in df.columns:
+        s = df[col]
+        if is_csv:
+            text = s.str.strip()
+            empty = (text == "") | (text.str.lower() == "nan")
+            vals = pd.to_numeric(text.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
+            bad = np.isnan(vals) & ~empty.to_numpy()
+            if bad.any():
+                row = int(np.argmax(bad))
+                line = int(_line_numbers(path)[row])
+                raise CampaignError(f"'{s.iloc[row]}' is not a number (use an empty cell or nan for a missing "
+                                    f"sample)", path=path, line=line, column=col)
+        else:
+            if not (pd.api.types.is_numeric_dtype(s) or pd.api.types.is_bool_dtype(s)):
+                raise CampaignError(f"column type {s.dtype} is not numeric", path=path, column=col)
+            vals = s.to_numpy(dtype=float, na_value=np.nan)
+        out[col] = vals
+    return out
+
+
+def read_run_file(path: Path, meta: CampaignMeta) -> Run:
+    """Read and check one run file (CSV or Parquet) and convert it to SI units."""
+    path = Path(path)
+    is_csv = path.suffix.lower() == ".csv"
+    if is_csv:
+        df = _read_csv(path)
+    else:
+        try:
+            df = pq.read_table(path).to_pandas()
+        except (pa.ArrowInvalid, OSError) as e:
+            raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
+    cols = _to_float_columns(df, path, is_csv)
+    names = list(cols)
+    line_of = (lambda row: int(_line_numbers(path)[row])) if is_csv else (lambda row: None)
+    where_row = (lambda row: {"line": line_of(row)}) if is_csv else (lambda row: {})
+    row_word = "" if is_csv else " (row {row})"
+
+    if "time" not in cols:
+        raise CampaignError("missing required column 'time'", path=path, column="time")
+    declared = {s.name for s in meta.sensors}
+    known = declared | {"time", "distance", "speed"} | {f"{n}_clipped" for n in declared}
+    for c in names:
+        if c not in known:
+            near = difflib.get_close_matches(c, sorted(declared), n=1)
+            hint = f"; did you mean '{near[0]}'?" if near else ""
+            raise CampaignError(f"unknown column, not declared in campaign.toml [[sensors]]{hint}", path=path,
+                                column=c)
+    for s in meta.sensors:
+        if s.name not in cols:
+            raise CampaignError(f"missing column for sensor declared in campaign.toml", path=path, column=s.name)
+    if meta.kind == "in_service" and "distance" not in cols and "speed" not in cols:
+        raise CampaignError("an in-service run needs a 'distance' or a 'speed' column", path=path, column="distance")
+
+    t = cols["time"]
+    if t.size < 2:
+        raise CampaignError("fewer than two samples", path=path, column="time")
+    if np.isnan(t).any():
+        row = int(np.argmax(np.isnan(t)))
+        raise CampaignError("time is missing" + row_word.format(row=row), path=path, column="time",
+                            **where_row(row))
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        row = int(np.argmax(dt <= 0)) + 1
+        raise CampaignError(f"time not strictly increasing ({t[row - 1]!r} then {t[row]!r})"
+                            + row_word.format(row=row), path=path, column="time", **where_row(row))
+    distance = cols.get("distance")
+    if distance is not None:
+        if np.isnan(distance).any():
+            row = int(np.argmax(np.isnan(distance)))
+            raise CampaignError("distance is missing" + row_word.format(row=row), path=path, column="distance",
+                                **where_row(row))
+        dd = np.diff(distance)
+        if (dd < 0).any():
+            row = int(np.argmax(dd < 0)) + 1
+            raise CampaignError(f"distance decreases ({distance[row - 1]!r} then {distance[row]!r})"
+                                + row_word.format(row=row), path=path, column="distance", **where_row(row))
+    speed = cols.get("speed")
+    if speed is not None and np.nanmin(speed) < 0:
+        row = int(np.nanargmin(speed))
+        raise CampaignError("negative speed" + row_word.format(row=row), path=path, column="speed",
+                            **where_row(row))
+
+    channels, valid = {}, {}
+    for s in meta.sensors:
+        raw = cols[s.name]
+        ok = np.isfinite(raw)
+        if not ok.any():
+            raise CampaignError("channel has no valid sample (all NaN or empty)", path=path, column=s.name)
+        clip = cols.get(f"{s.name}_clipped")
+        if clip is not None:
+            bad = ~np.isin(clip[np.isfinite(clip)], (0.0, 1.0))
+            if bad.any():
+                raise CampaignError("clipped flags must be 0 or 1", path=path, column=f"{s.name}_clipped")
+            ok &= ~(clip == 1.0)
+        channels[s.name] = raw * s.si_factor
+        valid[s.name] = ok
+
+    nominal_dt = 1.0 / meta.sampling_rate
+    gap_idx = np.flatnonzero(dt > GAP_FACTOR * nominal_dt)
+    gaps = tuple(Gap(float(t[i]), float(t[i + 1])) for i in gap_idx)
+    edges = np.concatenate([[0], gap_idx + 1, [t.size]])
+    blocks = tuple((int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]))
+    return Run(path.stem, path, t, channels, valid, blocks, gaps, distance, speed)
+
+
+# ------------------------------------------------------------------------------- tracks
+@dataclass(frozen=True)
+class TrackRecording:
+    name: str
+    path: Path
+    distance: np.ndarray  # [m]
+    level: np.ndarray  # [m]
+    band: str  # D1 | D2 | raw
+
+
+def read_track_file(path: Path) -> TrackRecording:
+    path = Path(path)
+    band = "raw"
+    with open(path, "r", encoding="utf-8", errors="replace") as f:
+        first = f.readline()
+    m = re.match(r'^#\s*band\s*=\s*"?([A-Za-z0-9]+)"?', first.strip())
+    if m:
+        band = m.group(1)
+        if band not in TRACK_BANDS:
+            raise CampaignError(f"unknown band {band!r}; expected one of {', '.join(TRACK_BANDS)}", path=path,
+                                line=1)
+    df = _read_csv(path)
+    cols = _to_float_columns(df, path, True)
+    for c in ("distance", "level"):
+        if c not in cols:
+            raise CampaignError(f"missing required column '{c}'", path=path, column=c)
+    d, z = cols["distance"], cols["level"]
+    for c, v in (("distance", d), ("level", z)):
+        if np.isnan(v).any():
+            row = int(np.argmax(np.isnan(v)))
+            raise CampaignError("missing value", path=path, column=c, line=int(_line_numbers(path)[row]))
+    if (np.diff(d) <= 0).any():
+        row = int(np.argmax(np.diff(d) <= 0)) + 1
+        raise CampaignError("distance not strictly increasing", path=path, column="distance",
+                            line=int(_line_numbers(path)[row]))
+    return TrackRecording(path.stem, path, d, z, band)
+
+
+# ----------------------------------------------------------------------------- campaign
+@dataclass(frozen=True)
+class Campaign:
+    root: Path
+    meta: CampaignMeta
+    run_paths: tuple[Path, ...]
+    track_paths: tuple[Path, ...]
+
+    @property
+    def run_ids(self) -> tuple[str, ...]:
+        return tuple(p.stem for p in self.run_paths)
+
+    def read_run(self, run_id: str) -> Run:
+        for p in self.run_paths:
+            if p.stem == run_id:
+                return read_run_file(p, self.meta)
+        raise KeyError(f"no run {run_id!r} in {self.root}")
+
+    def iter_runs(self) -> Iterator[Run]:
+        """Runs one at a time, in file-name order (streaming)."""
+        for p in self.run_paths:
+            yield read_run_file(p, self.meta)
+
+    def tracks(self) -> list[TrackRecording]:
+        return [read_track_file(p) for p in self.track_paths]
+
+    def run_summary(self, path: Path) -> dict:
+        """Time and distance range of a run from its own columns only (cheap for Parquet)."""
+        if path.suffix.lower() == ".parquet":
+            cols = [c for c in ("time", "distance", "speed") if c in pq.read_schema(path).names]
+            tab = pq.read_table(path, columns=cols).to_pandas()
+        else:
+            tab = pd.read_csv(path, comment="#", usecols=lambda c: c.strip() in ("time", "distance", "speed"))
+            tab.columns = [c.strip() for c in tab.columns]
+        return {c: tab[c].to_numpy(float) for c in tab.columns}
+
+
+def open_campaign(root) -> Campaign:
+    """Open a campaign folder: parse and check campaign.toml, list run and track files."""
+    root = Path(root)
+    if not root.is_dir():
+        raise CampaignError("not a campaign folder (no such directory)", path=root)
+    toml_path = root / "campaign.toml"
+    if not toml_path.is_file():
+        raise CampaignError("missing campaign.toml", path=root)
+    try:
+        with open(toml_path, "rb") as f:
+            data = tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        m = re.search(r"line (\d+)", str(e))
+        raise CampaignError(f"not valid TOML: {e}", path=toml_path, line=int(m.group(1)) if m else None) from None
+    except UnicodeDecodeError:
+        raise CampaignError("not UTF-8 text", path=toml_path) from None
+    meta = parse_meta(data, toml_path)
+    runs_dir = root / "runs"
+    if not runs_dir.is_dir():
+        raise CampaignError("missing runs/ folder", path=root)
+    run_paths = sorted(p for p in runs_dir.iterdir() if p.suffix.lower() in (".csv", ".parquet"))
+    if not run_paths:
+        raise CampaignError("no run files (*.csv or *.parquet)", path=runs_dir)
+    stems = [p.stem for p in run_paths]
+    dups = sorted({s for s in stems if stems.count(s) > 1})
+    if dups:
+        raise CampaignError(f"run id(s) {', '.join(dups)} present as both CSV and Parquet", path=runs_dir)
+    track_dir = root / "track"
+    tracks = tuple(sorted(track_dir.glob("*.csv"))) if track_dir.is_dir() else ()
+    return Campaign(root, meta, tuple(run_paths), tracks)
+
+
+# -------------------------------------------------------------------------------- write
+class CampaignWriter:
+    """Writes a campaign into a temporary folder beside ``root`` and moves it into place on
+    :meth:`commit`; on failure (or without commit) nothing is left at ``root``."""
+
+    def __init__(self, root, meta: CampaignMeta, *, fmt: str = "csv", overwrite: bool = False):
+        self.root = Path(root)
+        if fmt not in ("csv", "parquet"):
+            raise ValueError(f"format must be csv or parquet, not {fmt!r}")
+        if self.root.exists() and not overwrite:
+            raise CampaignError("already exists; choose another output or remove it", path=self.root)
+        self.root.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.root.name}.partial-", dir=self.root.parent))
+        self.fmt, self.meta, self.overwrite = fmt, meta, overwrite
+        (self.tmp / "runs").mkdir()
+        with open(self.tmp / "campaign.toml", "wb") as f:
+            tomli_w.dump(meta.to_toml(), f)
+
+    def write_run(self, run_id: str, columns: Mapping[str, np.ndarray]) -> Path:
+        """Columns in the sensors' declared (raw) units; NaN for missing samples."""
+        if not NAME_RE.match(run_id):
+            raise ValueError(f"run id {run_id!r} must match [A-Za-z0-9_]+")
+        path = self.tmp / "runs" / f"{run_id}.{self.fmt}"
+        df = pd.DataFrame({k: np.asarray(v) for k, v in columns.items()})
+        if self.fmt == "csv":
+            df.to_csv(path, index=False, float_format="%.9g", na_rep="")
+        else:
+            pq.write_table(pa.Table.from_pandas(df, preserve_index=False), path, compression="zstd")
+        return path
+
+    def write_track(self, name: str, distance: np.ndarray, level: np.ndarray, band: str = "raw") -> Path:
+        if band not in TRACK_BANDS:
+            raise ValueError(f"band must be one of {TRACK_BANDS}")
+        (self.tmp / "track").mkdir(exist_ok=True)
+        path = self.tmp / "track" / f"{name}.csv"
+        with open(path, "w") as f:
+            f.write(f'# band = "{band}"\n')
+            pd.DataFrame({"distance": distance, "level": level}).to_csv(f, index=False, float_format="%.9g")
+        return path
+
+    def commit(self) -> Path:
+        if self.root.exists():
+            shutil.rmtree(self.root)
+        os.replace(self.tmp, self.root)
+        return self.root
+
+    def abort(self) -> None:
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None:
+            self.abort()
+        return False
+
+
+def write_json_atomic(path, obj) -> Path:
+    """Write JSON via a temporary file and rename, so a failure never leaves half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(obj, f, indent=2, allow_nan=False, default=_json_default)
+            f.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")

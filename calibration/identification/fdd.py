@@ -1,0 +1,320 @@
+"""Segmental frequency domain decomposition (in-service seed, section 5).
+
+Classical FDD (Brincker et al. 2001) takes the cross-spectral density (CSD) matrix of
+simultaneously measured channels, decomposes it by SVD at every frequency and picks the
+peaks of the first singular value. The seed's *segmental* variant draws random 2 km
+segments from many journeys, runs one FDD per segment and sums the singular values, so
+that what the track, the speed and the noise put into one segment averages out while the
+vehicle's own frequencies add up.
+
+Pipeline here (pure functions of arrays; :func:`segmental_fdd` streams the runs):
+
+1. :func:`plan_segments` draws segment start distances over all runs from their
+   distance ranges only (one cheap read per run), more than needed, in a seeded order.
+2. :func:`segmental_fdd` reads each run once; for each planned segment it checks the
+   segment lies in one gap-free block with every analysis channel valid, band-passes it
+   (zero-phase Butterworth, seed: 6th order 0.25-25 Hz) with filter padding from the
+   surrounding data, resamples it to ``fs_analysis``, and forms the Welch CSD matrix.
+3. Each segment's CSD is normalised to unit in-band power before summation (the seed
+   sums raw singular values, which lets the fastest, loudest segments dominate).
+4. Singular values (and the CSD matrices, for mode shapes) are summed over the first
+   ``n_fdds`` valid segments of each analysis.
+
+Units: frequencies in Hz; the summed singular values are normalised (1/Hz).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+import scipy.signal
+
+from ..data.campaign import Campaign, CampaignMeta, Run
+from ..signals.filters import SEED_BAND_HZ, SEED_ORDER, bandpass
+
+
+@dataclass(frozen=True)
+class FDDSettings:
+    """Run settings of the segmental FDD (keyword-only use recommended)."""
+
+    segment_length: float = 2000.0  # [m] seed: 2 km
+    band: tuple[float, float] = SEED_BAND_HZ  # [Hz]
+    order: int = SEED_ORDER
+    fs_analysis: float = 100.0  # [Hz] after band-pass and resampling
+    window: float = 20.48  # [s] Welch segment length
+    overlap: float = 0.5
+    nfft_factor: int = 4  # zero padding of each Welch segment (finer peak location)
+    pad: float = 10.0  # [s] filter padding taken from surrounding valid data
+    normalise: bool = True
+    oversample: float = 2.5  # segments drawn per segment needed (some are rejected)
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.segment_length <= 0:
+            raise ValueError("segment_length must be > 0 m")
+        if not 0 < self.band[0] < self.band[1] < self.fs_analysis / 2:
+            raise ValueError(f"band {self.band} Hz must lie inside (0, fs_analysis/2)")
+        if not 0 <= self.overlap < 1:
+            raise ValueError("overlap must be in [0, 1)")
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """One FDD analysis: which channels, how many segment FDDs are summed (seed Table 3)."""
+
+    name: str
+    channels: tuple[str, ...]
+    n_fdds: int
+    role: str  # 'axle_bounce' | 'bogie_bounce' | 'bogie_pitch' | 'system'
+    body: str = ""
+
+
+@dataclass(frozen=True)
+class VirtualChannel:
+    """Vertical acceleration at a bogie centre from an off-centre accelerometer and a pitch
+    gyro on the same body: z''_c = z''(x_s) + (x_s - x_c) theta'' (positive pitch moves the
+    front down, campaign-format.md). Removes the pitch the seed saw in its bogie accelerometer."""
+
+    name: str
+    accelerometer: str
+    gyro: str
+    lever: float  # [m] x_s - x_c
+
+
+def virtual_channels(meta: CampaignMeta) -> tuple[VirtualChannel, ...]:
+    spacing = meta.geometry.get("bogie_semi_spacing")
+    if spacing is None:
+        return ()
+    out = []
+    for body, xc in (("bogie1", spacing), ("bogie2", -spacing)):
+        accs = [s for s in meta.sensors if s.body == body and s.quantity == "acceleration" and s.direction == "z"]
+        gyros = [s for s in meta.sensors if s.body == body and s.quantity == "angular_velocity"
+                 and s.direction == "pitch"]
+        if accs and gyros:
+            out.append(VirtualChannel(f"{body}_centre_acc_z", accs[0].name, gyros[0].name, accs[0].position[0] - xc))
+    return tuple(out)
+
+
+def plan_analyses(meta: CampaignMeta) -> tuple[Analysis, ...]:
+    """Seed Table 3, built from the sensors a campaign declares."""
+    vz = {v.name.split("_")[0]: v for v in virtual_channels(meta)}
+    out = []
+    acc_z = [s for s in meta.sensors if s.quantity == "acceleration" and s.direction == "z"]
+    for axle in ("axle1", "axle2", "axle3", "axle4"):
+        chans = tuple(s.name for s in acc_z if s.body == axle)
+        if chans:
+            out.append(Analysis(f"{axle}_bounce", chans, 20, "axle_bounce", axle))
+    for bogie in ("bogie1", "bogie2"):
+        if bogie in vz:
+            out.append(Analysis(f"{bogie}_bounce", (vz[bogie].name,), 50, "bogie_bounce", bogie))
+        else:
+            chans = tuple(s.name for s in acc_z if s.body == bogie)[:1]
+            if chans:
+                out.append(Analysis(f"{bogie}_bounce", chans, 50, "bogie_bounce", bogie))
+        gyro = [s.name for s in meta.sensors if s.body == bogie and s.quantity == "angular_velocity"
+                and s.direction == "pitch"]
+        if gyro:
+            out.append(Analysis(f"{bogie}_pitch", (gyro[0],), 50, "bogie_pitch", bogie))
+    system = tuple(s.name for s in acc_z if s.body.startswith(("axle", "bogie", "carbody")))
+    if len(system) > 1:
+        out.append(Analysis("system", system, 20, "system"))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Segment:
+    run_id: str
+    start: float  # [m]
+    end: float  # [m]
+
+
+@dataclass(frozen=True)
+class SegmentOutcome:
+    segment: Segment
+    used: bool
+    reason: str = ""
+    mean_speed: float = float("nan")  # [m/s]
+
+
+@dataclass(frozen=True)
+class FDDResult:
+    """Summed FDD of one analysis. ``singular_values`` is (n_channels, n_freq), descending."""
+
+    analysis: Analysis
+    frequency: np.ndarray  # [Hz]
+    singular_values: np.ndarray
+    csd: np.ndarray  # (n_freq, n_ch, n_ch), summed normalised CSD
+    n_used: int
+    speeds: np.ndarray  # [m/s] mean speed of each used segment
+
+    def first_singular_vector(self, f: float) -> np.ndarray:
+        i = int(np.argmin(np.abs(self.frequency - f)))
+        u, _, _ = np.linalg.svd(self.csd[i])
+        return u[:, 0]
+
+
+@dataclass(frozen=True)
+class SegmentalFDD:
+    settings: FDDSettings
+    results: dict[str, FDDResult]
+    outcomes: tuple[SegmentOutcome, ...] = field(repr=False)
+
+
+def _distance_axis(distance, speed, time) -> np.ndarray:
+    if distance is not None:
+        return distance
+    v = np.nan_to_num(speed)
+    return np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(time))])
+
+
+def plan_segments(campaign: Campaign, n_needed: int, settings: FDDSettings) -> list[Segment]:
+    """Random segments over all runs, proportional to run length, in a seeded order."""
+    rng = np.random.default_rng(settings.seed)
+    ranges = []
+    for path in campaign.run_paths:
+        cols = campaign.run_summary(path)
+        d = _distance_axis(cols.get("distance"), cols.get("speed"), cols["time"])
+        d = d[np.isfinite(d)]
+        if d.size and d[-1] - d[0] > settings.segment_length:
+            ranges.append((path.stem, float(d[0]), float(d[-1])))
+    if not ranges:
+        return []
+    lengths = np.array([b - a - settings.segment_length for _, a, b in ranges])
+    n = int(np.ceil(n_needed * settings.oversample))
+    which = rng.choice(len(ranges), size=n, p=lengths / lengths.sum())
+    out = []
+    for k in which:
+        run_id, a, b = ranges[k]
+        start = rng.uniform(a, b - settings.segment_length)
+        out.append(Segment(run_id, float(start), float(start + settings.segment_length)))
+    return out
+
+
+def channel_matrix(run: Run, names: tuple[str, ...], vchans: dict[str, VirtualChannel], i0: int, i1: int):
+    """(n_ch, N) SI data and validity for real or virtual channels over samples [i0, i1)."""
+    data, ok = [], np.ones(i1 - i0, bool)
+    t = run.time[i0:i1]
+    for name in names:
+        if name in vchans:
+            v = vchans[name]
+            acc = run.channels[v.accelerometer][i0:i1]
+            rate = run.channels[v.gyro][i0:i1]
+            ok &= run.valid[v.accelerometer][i0:i1] & run.valid[v.gyro][i0:i1]
+            x = acc + v.lever * np.gradient(np.nan_to_num(rate), t)
+        else:
+            x = run.channels[name][i0:i1]
+            ok &= run.valid[name][i0:i1]
+        data.append(x)
+    return np.vstack(data), ok
+
+
+def segment_csd(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Welch CSD matrix (n_freq, n_ch, n_ch) of the rows of x [units^2/Hz], one-sided."""
+    nper = int(round(settings.window * fs))
+    if x.shape[1] < nper:
+        raise ValueError(f"segment of {x.shape[1]} samples is shorter than one Welch window ({nper})")
+    hop = max(1, int(round(nper * (1 - settings.overlap))))
+    nfft = 1 << (nper * settings.nfft_factor - 1).bit_length()
+    win = scipy.signal.windows.hann(nper, sym=False)
+    starts = np.arange(0, x.shape[1] - nper + 1, hop)
+    frames = np.stack([x[:, s:s + nper] for s in starts])  # (n_win, n_ch, nper)
+    frames = frames - frames.mean(axis=2, keepdims=True)
+    X = np.fft.rfft(frames * win, n=nfft, axis=2)  # (n_win, n_ch, n_f)
+    scale = 2.0 / (fs * np.sum(win**2))
+    G = np.einsum("wif,wjf->fij", X, np.conj(X)) * (scale / len(starts))
+    G[0] /= 2
+    if nfft % 2 == 0:
+        G[-1] /= 2
+    return np.fft.rfftfreq(nfft, 1 / fs), G
+
+
+def _prepare_segment(run: Run, seg: Segment, names, vchans, settings: FDDSettings, run_rate: float):
+    d = _distance_axis(run.distance, run.speed, run.time)
+    i0, i1 = int(np.searchsorted(d, seg.start)), int(np.searchsorted(d, seg.end))
+    if i1 - i0 < 10:
+        return None, "segment outside the run's distance range"
+    block = next(((a, b) for a, b in run.blocks if a <= i0 < b), None)
+    if block is None or i1 > block[1]:
+        return None, "segment crosses a gap in the recording"
+    dt = np.diff(run.time[block[0]:block[1]])
+    fs = 1.0 / float(np.median(dt))
+    if abs(fs / run_rate - 1) < 1e-6:
+        fs = run_rate  # the declared rate, exactly
+    padn = int(settings.pad * fs)
+    p0, p1 = max(block[0], i0 - padn), min(block[1], i1 + padn)
+    x, ok = channel_matrix(run, names, vchans, p0, p1)
+    if not ok[i0 - p0:i1 - p0].all():
+        return None, "missing or clipped samples inside the segment"
+    # padding only from valid data: trim the padding at the first invalid sample
+    bad = np.flatnonzero(~ok)
+    lo = bad[bad < i0 - p0].max() + 1 if (bad < i0 - p0).any() else 0
+    hi = bad[bad >= i1 - p0].min() if (bad >= i1 - p0).any() else p1 - p0
+    x = x[:, lo:hi]
+    t = run.time[p0 + lo:p0 + hi]
+    if np.ptp(np.diff(t)) > 1e-3 / fs:  # irregular sampling inside a block: uniform grid
+        tu = np.arange(t[0], t[-1], 1.0 / fs)
+        x = np.vstack([np.interp(tu, t, row) for row in x])
+    x = x - x.mean(axis=1, keepdims=True)
+    xf = bandpass(x, fs, settings.band, order=settings.order, axis=1)
+    frac = Fraction(settings.fs_analysis / fs).limit_denominator(1000)
+    xr = scipy.signal.resample_poly(xf, frac.numerator, frac.denominator, axis=1) if frac != 1 else xf
+    fs_a = settings.fs_analysis if frac == Fraction(settings.fs_analysis / fs) else fs * frac.numerator / frac.denominator
+    a = int(round((i0 - p0 - lo) * fs_a / fs))
+    b = int(round((i1 - p0 - lo) * fs_a / fs))
+    speed = float((seg.end - seg.start) / (run.time[i1 - 1] - run.time[i0]))
+    return (xr[:, a:b], fs_a, speed), ""
+
+
+def segmental_fdd(campaign: Campaign, analyses: tuple[Analysis, ...] | None = None, *,
+                  settings: FDDSettings = FDDSettings(), progress=None) -> SegmentalFDD:
+    """Segmental FDD of a campaign, one run in memory at a time."""
+    meta = campaign.meta
+    analyses = plan_analyses(meta) if analyses is None else analyses
+    vchans = {v.name: v for v in virtual_channels(meta)}
+    n_needed = max(a.n_fdds for a in analyses)
+    plan = plan_segments(campaign, n_needed, settings)
+    order = {id(s): k for k, s in enumerate(plan)}
+    by_run: dict[str, list[Segment]] = {}
+    for s in plan:
+        by_run.setdefault(s.run_id, []).append(s)
+    # per analysis, per plan index: CSD of that segment (kept only until summed)
+    per_seg: dict[str, dict[int, tuple]] = {a.name: {} for a in analyses}
+    outcomes: dict[int, SegmentOutcome] = {}
+    freq = None
+    for path in campaign.run_paths:
+        segs = by_run.get(path.stem)
+        if not segs:
+            continue
+        run = campaign.read_run(path.stem)
+        if progress:
+            progress(f"FDD: {run.run_id}, {len(segs)} segments")
+        for seg in segs:
+            k = order[id(seg)]
+            used_any, reason, speed = False, "", float("nan")
+            for a in analyses:
+                prep, why = _prepare_segment(run, seg, a.channels, vchans, settings, meta.sampling_rate)
+                if prep is None:
+                    reason = why
+                    continue
+                x, fs_a, speed = prep
+                f, G = segment_csd(x, fs_a, settings)
+                band = (f >= settings.band[0]) & (f <= settings.band[1])
+                if settings.normalise:
+                    power = np.real(np.trace(G[band], axis1=1, axis2=2)).sum() * (f[1] - f[0])
+                    G = G / power
+                per_seg[a.name][k] = (G[band], speed)
+                freq = f[band]
+                used_any = True
+            outcomes[k] = SegmentOutcome(seg, used_any, reason if not used_any else "", speed)
+        del run
+    results = {}
+    for a in analyses:
+        keys = sorted(per_seg[a.name])[: a.n_fdds]
+        if not keys:
+            continue
+        Gs = np.stack([per_seg[a.name][k][0] for k in keys])  # (n_seg, n_f, n_ch, n_ch)
+        sv = np.linalg.svd(Gs, compute_uv=False, hermitian=True).sum(axis=0).T  # (n_ch, n_f)
+        speeds = np.array([per_seg[a.name][k][1] for k in keys])
+        results[a.name] = FDDResult(a, freq, sv, Gs.sum(axis=0), len(keys), speeds)
+    return SegmentalFDD(settings, results, tuple(outcomes[k] for k in sorted(outcomes)))

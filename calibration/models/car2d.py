@@ -1,0 +1,204 @@
+"""The 2D car model of the in-service seed (Figure 2): carbody, two bogies, four wheelsets.
+
+Built from :mod:`calibration.models.assembly` bodies and spring-dampers. Two variants:
+
+* ``wheelsets="rail"`` (6 DOF): wheelsets rigidly on the rail; the rail level under
+  wheelset i is the input ``z_rail_i`` (the seed's coupling, Lin & Trethewey 1990).
+* ``wheelsets="free"`` (10 DOF): wheelsets are point masses on a vertical contact /
+  track spring ``k_contact`` (and damper ``c_contact``) to the rail input.
+
+Wheelset 1 leads: bogie 1 sits at x = +L_v, wheelset 1 at x = L_v + L_b.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from .assembly import Assembly, Attachment, Body, SpringDamper, assemble
+from .parameters import CarParameters
+
+RAIL_INPUTS = ("z_rail_1", "z_rail_2", "z_rail_3", "z_rail_4")
+GRAVITY = 9.80665  # [m/s^2] standard gravity
+
+
+def wheelset_positions(p: CarParameters) -> np.ndarray:
+    """Longitudinal positions [m] of wheelsets 1..4 in the vehicle frame (1 leads)."""
+    return np.array([p.L_v + p.L_b, p.L_v - p.L_b, -p.L_v + p.L_b, -p.L_v - p.L_b])
+
+
+def bogie_positions(p: CarParameters) -> np.ndarray:
+    return np.array([p.L_v, -p.L_v])
+
+
+def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
+              c_contact: float = 0.0) -> Assembly:
+    """Assemble the 2D car from rigid bodies and spring-dampers."""
+    if wheelsets not in ("rail", "free"):
+        raise ValueError(f"wheelsets must be 'rail' or 'free', not {wheelsets!r}")
+    xb = bogie_positions(p)
+    xw = wheelset_positions(p)
+    bodies = [Body("carbody", p.m_v, 0.0, p.J_v)]
+    bodies += [Body(f"bogie{i + 1}", p.m_b, xb[i], p.J_b) for i in range(2)]
+    elements = [
+        SpringDamper(f"secondary{i + 1}", Attachment("carbody", xb[i]), Attachment(f"bogie{i + 1}", xb[i]),
+                     p.k_s, p.c_s)
+        for i in range(2)
+    ]
+    for j in range(4):
+        bogie = f"bogie{1 + j // 2}"
+        if wheelsets == "rail":
+            below = Attachment(input=RAIL_INPUTS[j])
+        else:
+            bodies.append(Body(f"wheelset{j + 1}", p.m_w, xw[j]))
+            below = Attachment(f"wheelset{j + 1}", xw[j])
+            elements.append(SpringDamper(f"contact{j + 1}", below, Attachment(input=RAIL_INPUTS[j]),
+                                         k_contact, c_contact))
+        elements.append(SpringDamper(f"primary{j + 1}", Attachment(bogie, xw[j]), below, p.k_p, p.c_p))
+    return assemble(bodies, elements, list(RAIL_INPUTS))
+
+
+# --------------------------------------------------------------------------- modes
+_GROUPS = {
+    "carbody_bounce": ("carbody_z",),
+    "carbody_pitch": ("carbody_pitch",),
+    "bogie_bounce": ("bogie1_z", "bogie2_z"),
+    "bogie_pitch": ("bogie1_pitch", "bogie2_pitch"),
+    "axle_bounce": ("wheelset1_z", "wheelset2_z", "wheelset3_z", "wheelset4_z"),
+}
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One vibration mode: label from its kinetic-energy distribution over the DOFs."""
+
+    label: str
+    frequency_hz: float  # undamped natural frequency [Hz]
+    damped_frequency_hz: float | None  # [Hz]; None when overdamped or undamped analysis
+    damping_ratio: float | None
+    shape: np.ndarray  # real (undamped) mode shape over the assembly DOFs, mass-normalised
+    energy: dict  # kinetic-energy fraction per DOF
+
+
+def _label(asm: Assembly, shape: np.ndarray) -> tuple[str, dict]:
+    ke = np.real(np.conj(shape) * (asm.M @ shape))
+    ke = ke / ke.sum()
+    energy = {d: float(e) for d, e in zip(asm.dofs, ke)}
+    scores = {g: sum(energy.get(d, 0.0) for d in dofs) for g, dofs in _GROUPS.items()}
+    best = max(scores, key=scores.get)
+    # Both bogies share m_b, J_b here, so bogie modes come as symmetric/antisymmetric
+    # (or degenerate) pairs under one label; per-bogie labels (bogie1_bounce, ...)
+    # belong with per-bogie parameters (m_b_1, ...), which this model does not have yet.
+    return best, energy
+
+
+def undamped_modes(asm: Assembly) -> list[Mode]:
+    """Undamped modes (K phi = w^2 M phi), ascending frequency, labelled by shape."""
+    w2, phi = scipy.linalg.eigh(asm.K, asm.M)
+    modes = []
+    for i in range(len(w2)):
+        f = float(np.sqrt(max(w2[i], 0.0)) / (2 * np.pi))
+        label, energy = _label(asm, phi[:, i])
+        modes.append(Mode(label, f, None, None, phi[:, i], energy))
+    return modes
+
+
+def damped_modes(asm: Assembly) -> list[Mode]:
+    """Damped modes from the state-space eigenproblem; one per conjugate pair (or real root)."""
+    A = state_matrix(asm)
+    lam, vec = scipy.linalg.eig(A)
+    n = len(asm.dofs)
+    order = np.argsort(np.abs(lam))
+    modes, used = [], np.zeros(len(lam), bool)
+    for i in order:
+        if used[i] or lam[i].imag < -1e-12:
+            continue
+        used[i] = True
+        if abs(lam[i].imag) > 1e-12:
+            j = np.argmin(np.abs(lam - np.conj(lam[i])) + used * 1e300)
+            used[j] = True
+        wn = abs(lam[i])
+        zeta = float(-lam[i].real / wn) if wn > 0 else None
+        shape = vec[:n, i]
+        label, energy = _label(asm, shape)
+        fd = float(abs(lam[i].imag) / (2 * np.pi)) if abs(lam[i].imag) > 1e-12 else None
+        modes.append(Mode(label, float(wn / (2 * np.pi)), fd, zeta, shape, energy))
+    return modes
+
+
+def frequencies_by_label(modes: list[Mode]) -> dict[str, float]:
+    """Frequency per label; modes sharing a label (symmetric/antisymmetric bogie pairs)
+    are reported by their mean, the value a single-bogie measurement resolves."""
+    groups: dict[str, list[float]] = {}
+    for m in modes:
+        groups.setdefault(m.label, []).append(m.frequency_hz)
+    return {k: float(np.mean(v)) for k, v in groups.items()}
+
+
+# --------------------------------------------------------------------- state space
+def state_matrix(asm: Assembly) -> np.ndarray:
+    n = len(asm.dofs)
+    Minv = np.linalg.inv(asm.M)
+    return np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ asm.K, -Minv @ asm.C]])
+
+
+@dataclass(frozen=True)
+class Output:
+    """A measured quantity of the model: ``kind`` is one of
+    'displacement' [m], 'velocity' [m/s], 'acceleration' [m/s^2] at (body, x) vertically,
+    or 'pitch_angle' [rad], 'pitch_rate' [rad/s] of a body."""
+
+    name: str
+    kind: str
+    body: str
+    x: float = 0.0
+
+
+@dataclass(frozen=True)
+class StateSpace:
+    """x' = A x + B w, y = C x + D w with x = [q; q'], w = [u; u']."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    outputs: tuple[str, ...]
+    inputs: tuple[str, ...]
+
+
+def state_space(asm: Assembly, outputs: list[Output]) -> StateSpace:
+    n = len(asm.dofs)
+    m = len(asm.inputs)
+    Minv = np.linalg.inv(asm.M)
+    A = state_matrix(asm)
+    B = np.vstack([np.zeros((n, 2 * m)), np.hstack([Minv @ asm.B_k, Minv @ asm.B_c])])
+    acc_x = np.hstack([-Minv @ asm.K, -Minv @ asm.C])  # q'' = acc_x x + acc_w w
+    acc_w = np.hstack([Minv @ asm.B_k, Minv @ asm.B_c])
+    C = np.zeros((len(outputs), 2 * n))
+    D = np.zeros((len(outputs), 2 * m))
+    for r, o in enumerate(outputs):
+        if o.kind in ("pitch_angle", "pitch_rate"):
+            g = np.zeros(n)
+            g[asm.dof(f"{o.body}_pitch")] = 1.0
+        else:
+            g = asm.point_row(o.body, o.x)
+        if o.kind in ("displacement", "pitch_angle"):
+            C[r, :n] = g
+        elif o.kind in ("velocity", "pitch_rate"):
+            C[r, n:] = g
+        elif o.kind == "acceleration":
+            C[r] = g @ acc_x
+            D[r] = g @ acc_w
+        else:
+            raise ValueError(f"unknown output kind {o.kind!r} for {o.name}")
+    inputs = tuple(asm.inputs) + tuple(f"d{u}" for u in asm.inputs)
+    return StateSpace(A, B, C, D, tuple(o.name for o in outputs), inputs)
+
+
+def static_deflection(asm: Assembly, gravity: float = GRAVITY) -> np.ndarray:
+    """Static displacement of every DOF [m / rad] under gravity (rails at zero level)."""
+    f = np.zeros(len(asm.dofs))
+    for b in asm.bodies:
+        f[asm.dof(f"{b.name}_z")] = -b.mass * gravity
+    return np.linalg.solve(asm.K, f)

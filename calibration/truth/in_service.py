@@ -1,0 +1,299 @@
+"""Truth simulator for in-service campaigns (the in-service seed's test, sections 3-4).
+
+A 2D car (wheelsets on a rigid rail) runs journeys over one synthetic line
+(:mod:`calibration.truth.track`) at speeds that vary within and between journeys; its
+exact response (:mod:`calibration.models.simulate`) is measured by the seed's Table 1
+sensors on the leading bogie:
+
+* four axle-box accelerometers (wheelsets 1 and 2, left and right), in g;
+* a bogie vertical accelerometer mounted ``sensor_offset`` ahead of the bogie centre, so
+  it sees pitch as well as bounce, in g (reads +1 g at rest, as accelerometers do);
+* a bogie pitch gyrometer in deg/s whose raw output is ``1/gyro_scale`` of the true rate
+  (campaign.toml carries ``scale = gyro_scale``, the seed's post-measurement factor),
+  with an offset, a slow temperature drift and a speed-independent 77.64 Hz tone picked
+  up from the E-TPWS unit it is mounted on (seed section 4);
+* distance from 5 Hz GPS fixes (slowly wandering error plus jitter), linearly
+  interpolated to the logger's rate, and speed from GPS Doppler.
+
+Logger drop-outs leave gaps (rows missing) and short NaN bursts. Everything random comes
+from one seeded ``numpy.random.Generator``.
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor, write_json_atomic
+from ..data.units import STANDARD_GRAVITY
+from ..models.car2d import (Output, build_car, damped_modes, frequencies_by_label, state_space,
+                            undamped_modes, wheelset_positions)
+from ..models.parameters import CarParameters
+from ..models.simulate import ModalSimulator
+from ..models.vehicles import INTERCITY_TRAILER, SEED_PRIOR_RANGES
+from .effects import EffectChoice
+from .track import Line, LineSpec
+
+TRUTH_FORMAT = "railcal-truth/1"
+
+
+@dataclass(frozen=True)
+class InServiceSettings:
+    """What a synthetic in-service campaign looks like (SI units)."""
+
+    journeys: int = 10
+    line: LineSpec = field(default_factory=lambda: LineSpec(length=40_000.0))
+    fs: float = 500.0  # [Hz] logger rate (seed section 3)
+    speed_range: tuple[float, float] = (20.0, 45.0)  # [m/s]
+    vehicle: CarParameters = INTERCITY_TRAILER
+    perturb: float = 0.08  # truth parameters drawn within +-perturb of nominal (inside the priors)
+    sensor_offset: float = 0.45  # [m] bogie accelerometer/gyro ahead of the bogie centre
+    gyro_scale: float = 23.9  # seed section 4
+    gyro_tone_hz: float = 77.64  # seed section 4 / Figure 7(a)
+    gyro_tone_raw: float = 0.03  # [deg/s] raw amplitude of the tone
+    gyro_noise_raw: float = 0.004  # [deg/s] raw rms
+    gyro_offset_raw: float = 0.4  # [deg/s] max |offset|
+    gyro_drift_raw: float = 0.15  # [deg/s] rms of the slow drift
+    bogie_acc_noise: float = 0.03  # [m/s^2] rms
+    axle_acc_noise: float = 0.15  # [m/s^2] rms
+    gps_error: float = 1.5  # [m] rms of the slowly wandering GPS error
+    gps_jitter: float = 0.2  # [m] rms per fix
+    gps_rate: float = 5.0  # [Hz]
+    speed_noise: float = 0.05  # [m/s] GPS Doppler speed rms
+    gap_probability: float = 0.5  # per journey: a logger drop-out of 1-4 s
+    nan_probability: float = 0.3  # per journey: a 0.2 s NaN burst in one channel
+    chunk: int = 1 << 17
+
+    def __post_init__(self):
+        if self.journeys < 1:
+            raise ValueError("journeys must be >= 1")
+        lo, hi = self.speed_range
+        if not 0 < lo < hi:
+            raise ValueError(f"speed range {self.speed_range} must satisfy 0 < low < high")
+
+
+# --------------------------------------------------------------------------- sensors
+AXLE_BOX_Y = 1.0  # [m] lateral position of the axle boxes
+SENSOR_HEIGHT = 0.7  # [m] above rail
+
+
+def default_sensors(p: CarParameters, settings: InServiceSettings) -> tuple[Sensor, ...]:
+    """Seed Table 1 sensors on the leading bogie (bogie 1)."""
+    xw = wheelset_positions(p)
+    sensors = []
+    for j in (0, 1):
+        for side, y in (("left", AXLE_BOX_Y), ("right", -AXLE_BOX_Y)):
+            sensors.append(Sensor(f"axle{j + 1}_{side}_acc_z", "acceleration", "g", f"axle{j + 1}", "z",
+                                  (float(xw[j]), y, 0.45)))
+    xs = p.L_v + settings.sensor_offset
+    sensors.append(Sensor("bogie1_acc_z", "acceleration", "g", "bogie1", "z", (xs, 0.6, SENSOR_HEIGHT)))
+    sensors.append(Sensor("bogie1_gyro_pitch", "angular_velocity", "deg/s", "bogie1", "pitch",
+                          (xs, 0.6, SENSOR_HEIGHT), settings.gyro_scale))
+    return tuple(sensors)
+
+
+def draw_truth_parameters(settings: InServiceSettings, rng: np.random.Generator) -> CarParameters:
+    """The car the campaign was 'measured' on: nominal values perturbed inside the priors."""
+    base = settings.vehicle
+    changes = {}
+    for name, (lo, hi) in SEED_PRIOR_RANGES.items():
+        v = getattr(base, name) * (1 + rng.uniform(-settings.perturb, settings.perturb))
+        changes[name] = float(np.clip(v, lo + 0.02 * (hi - lo), hi - 0.02 * (hi - lo)))
+    for name in ("c_p", "c_s"):
+        changes[name] = getattr(base, name) * rng.uniform(0.85, 1.15)
+    return base.replace(**changes)
+
+
+def campaign_priors(settings: InServiceSettings) -> dict[str, Prior]:
+    return {n: Prior(getattr(settings.vehicle, n), lo, hi) for n, (lo, hi) in SEED_PRIOR_RANGES.items()}
+
+
+# -------------------------------------------------------------------------- journeys
+def speed_profile(s: np.ndarray, rng: np.random.Generator, speed_range: tuple[float, float]) -> np.ndarray:
+    """Speed [m/s] along distance ``s`` [m]: a cruise speed per journey plus smooth
+    variations over kilometres (speed restrictions, gradients), kept inside the range
+    with a soft limit so the acceleration stays below about 0.5 m/s^2."""
+    lo, hi = speed_range
+    mid, half = (lo + hi) / 2, (hi - lo) / 2
+    cruise = rng.uniform(lo + 0.2 * half, hi - 0.2 * half)
+    v = np.full_like(s, cruise)
+    for _ in range(6):
+        wavelength = rng.uniform(2_000.0, 15_000.0)
+        v += rng.uniform(0.5, 2.5) * np.sin(2 * np.pi * s / wavelength + rng.uniform(0, 2 * np.pi))
+    # soft limit into (lo, hi)
+    return mid + half * np.tanh((v - mid) / half)
+
+
+def _ou(n: int, dt: float, tau: float, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """Ornstein-Uhlenbeck process sampled every dt (exact discretisation)."""
+    a = np.exp(-dt / tau)
+    e = rng.normal(0.0, sigma * np.sqrt(1 - a * a), n)
+    e[0] = rng.normal(0.0, sigma)
+    import scipy.signal
+
+    return scipy.signal.lfilter([1.0], [1.0, -a], e)
+
+
+@dataclass(frozen=True)
+class JourneyTruth:
+    run_id: str
+    mean_speed: float
+    min_speed: float
+    max_speed: float
+    duration: float
+    gaps: list
+    nan_bursts: list
+    gyro_offset_raw: float
+
+
+def simulate_journey(run_id: str, line: Line, p: CarParameters, sensors: tuple[Sensor, ...],
+                     settings: InServiceSettings, rng: np.random.Generator) -> tuple[dict, JourneyTruth]:
+    """One journey over the whole line: returns raw columns (sensor units) and its truth."""
+    fs = settings.fs
+    xw = wheelset_positions(p)
+    s_start = max(0.0, float(xw.max()) - line.s_min + 1.0) if line.s_min > -1 else 0.0
+    s_end = line.spec.length
+    s_grid = np.arange(s_start, s_end, 1.0)
+    v_grid = speed_profile(s_grid, rng, settings.speed_range)
+    t_grid = np.concatenate([[0.0], np.cumsum(np.diff(s_grid) / (0.5 * (v_grid[1:] + v_grid[:-1])))])
+    n = int(t_grid[-1] * fs)
+    t = np.arange(n) / fs
+    s = np.interp(t, t_grid, s_grid)
+    v = np.interp(s, s_grid, v_grid)
+    dvds = np.interp(s, s_grid, np.gradient(v_grid, s_grid))
+    acc_train = v * dvds
+
+    bogie = next(x for x in sensors if x.name == "bogie1_acc_z")
+    outputs = [Output("bogie1_acc_z", "acceleration", "bogie1", bogie.position[0]),
+               Output("bogie1_pitch_rate", "pitch_rate", "bogie1")]
+    sim = ModalSimulator(state_space(build_car(p), outputs), 1.0 / fs, x0="static")
+    bogie_acc = np.empty(n)
+    pitch_rate = np.empty(n)
+    axle = {x.name: np.empty(n) for x in sensors if x.body.startswith("axle")}
+    for a in range(0, n, settings.chunk):
+        b = min(n, a + settings.chunk)
+        sc, vc, ac = s[a:b], v[a:b], acc_train[a:b]
+        w = np.empty((b - a, 8))
+        for j in range(4):
+            z, dz, _ = line.level(sc + xw[j])
+            w[:, j] = z
+            w[:, 4 + j] = vc * dz
+        y = sim.step_chunk(w)
+        bogie_acc[a:b] = y[:, 0]
+        pitch_rate[a:b] = y[:, 1]
+        for x in sensors:
+            if x.body.startswith("axle"):
+                side = 1 if "left" in x.name else -1
+                _, dz, d2z = line.level(sc + x.position[0], side=side)
+                axle[x.name][a:b] = vc * vc * d2z + ac * dz
+
+    g = STANDARD_GRAVITY
+    cols: dict[str, np.ndarray] = {"time": t}
+    # GPS: 5 Hz fixes of distance (wandering error + jitter) and Doppler speed
+    t_fix = np.arange(0.0, t[-1] + 1.0 / settings.gps_rate, 1.0 / settings.gps_rate)
+    s_fix = np.interp(t_fix, t, s) + _ou(t_fix.size, 1 / settings.gps_rate, 30.0, settings.gps_error, rng) \
+        + rng.normal(0, settings.gps_jitter, t_fix.size)
+    cols["distance"] = np.maximum.accumulate(np.interp(t, t_fix, s_fix))
+    v_fix = np.interp(t_fix, t, v) + rng.normal(0, settings.speed_noise, t_fix.size)
+    cols["speed"] = np.interp(t, t_fix, v_fix)
+    for x in sensors:
+        if x.body.startswith("axle"):
+            cols[x.name] = (axle[x.name] + rng.normal(0, settings.axle_acc_noise, n)) / g + 1.0
+    cols["bogie1_acc_z"] = (bogie_acc + rng.normal(0, settings.bogie_acc_noise, n)) / g + 1.0
+    offset = rng.uniform(-settings.gyro_offset_raw, settings.gyro_offset_raw)
+    drift = _ou(n, 1 / fs, 600.0, settings.gyro_drift_raw, rng)
+    tone = settings.gyro_tone_raw * np.sin(2 * np.pi * settings.gyro_tone_hz * t + rng.uniform(0, 2 * np.pi))
+    gyro = next(x for x in sensors if x.name == "bogie1_gyro_pitch")
+    cols["bogie1_gyro_pitch"] = (np.degrees(pitch_rate) / gyro.scale + offset + drift + tone
+                                 + rng.normal(0, settings.gyro_noise_raw, n))
+
+    nan_bursts = []
+    if rng.uniform() < settings.nan_probability:
+        ch = str(rng.choice([x.name for x in sensors]))
+        i0 = int(rng.integers(0, n - int(0.2 * fs)))
+        cols[ch][i0:i0 + int(0.2 * fs)] = np.nan
+        nan_bursts.append({"channel": ch, "time": float(t[i0]), "duration": 0.2})
+    keep = np.ones(n, bool)
+    gaps = []
+    if rng.uniform() < settings.gap_probability:
+        i0 = int(rng.integers(int(0.1 * n), int(0.9 * n)))
+        length = int(rng.uniform(1.0, 4.0) * fs)
+        keep[i0:i0 + length] = False
+        gaps.append({"after_time": float(t[i0 - 1]), "before_time": float(t[min(n - 1, i0 + length)])})
+    cols = {k: c[keep] for k, c in cols.items()}
+    truth = JourneyTruth(run_id, float(v.mean()), float(v.min()), float(v.max()), float(t[-1]), gaps,
+                         nan_bursts, float(offset))
+    return cols, truth
+
+
+# -------------------------------------------------------------------------- campaign
+def modal_truth(p: CarParameters) -> dict:
+    asm = build_car(p)
+    und = undamped_modes(asm)
+    dmp = damped_modes(asm)
+    damped: dict[str, list] = {}
+    for m in dmp:
+        damped.setdefault(m.label, []).append((m.damped_frequency_hz, m.damping_ratio))
+    return {
+        "frequencies_hz": frequencies_by_label(und),
+        "damped_frequencies_hz": {k: float(np.mean([f for f, _ in v if f is not None])) for k, v in damped.items()},
+        "damping_ratios": {k: float(np.mean([z for _, z in v])) for k, v in damped.items()},
+        "modes": [{"label": m.label, "frequency_hz": m.frequency_hz, "damped_frequency_hz": m.damped_frequency_hz,
+                   "damping_ratio": m.damping_ratio} for m in dmp],
+    }
+
+
+def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServiceSettings(),
+                     effect: EffectChoice | None = None, fmt: str = "csv", overwrite: bool = False,
+                     progress=None) -> dict:
+    """Write a synthetic in-service campaign to ``out`` and its truth to ``out.truth.json``."""
+    if effect is not None:
+        raise NotImplementedError(f"effect {effect.spec.name} is registered but not simulated")
+    out = Path(out)
+    rng = np.random.default_rng(seed)
+    p = draw_truth_parameters(settings, rng)
+    line = Line(settings.line, rng)
+    sensors = default_sensors(settings.vehicle, settings)
+    meta = CampaignMeta(
+        kind="in_service", name=f"synthetic in-service campaign (seed {seed})",
+        vehicle="intercity trailer car (railcal truth simulator)", sensors=sensors, sampling_rate=settings.fs,
+        geometry={"bogie_semi_spacing": settings.vehicle.L_v, "semi_wheelbase": settings.vehicle.L_b,
+                  "length": 23.0, "width": 2.85, "height": 3.8},
+        priors=campaign_priors(settings))
+    journeys = []
+    with CampaignWriter(out, meta, fmt=fmt, overwrite=overwrite) as w:
+        for k in range(settings.journeys):
+            run_id = f"journey_{k + 1:03d}"
+            cols, jt = simulate_journey(run_id, line, p, sensors, settings, rng)
+            w.write_run(run_id, cols)
+            journeys.append(jt.__dict__)
+            if progress:
+                progress(f"{run_id}: {jt.duration:.0f} s at {jt.mean_speed:.1f} m/s mean")
+        # the track recording car's D1 record of one section
+        rec_len = min(2_000.0, 0.5 * settings.line.length)
+        start = float(rng.uniform(0.1 * settings.line.length, 0.9 * settings.line.length - rec_len))
+        d, z = line.recording(start, rec_len, rng=rng)
+        w.write_track("trv_d1", d, z, band="D1")
+        w.commit()
+    truth = {
+        "format": TRUTH_FORMAT, "kind": "in_service", "seed": seed, "campaign": out.name,
+        "parameters": p.as_dict(), **modal_truth(p),
+        "effect": None if effect is None else effect.to_json(),
+        "sensors": {"bogie1_gyro_pitch": {"scale_true": settings.gyro_scale, "scale_declared": settings.gyro_scale,
+                                          "tone_hz": settings.gyro_tone_hz},
+                    "bogie1_acc_z": {"x_offset_from_bogie_m": settings.sensor_offset}},
+        "non_vehicle_tones_hz": {"bogie1_gyro_pitch": [settings.gyro_tone_hz]},
+        "speed_dependent_wavelengths_m": {"sleeper": settings.line.sleeper_spacing,
+                                          "rail_panel": settings.line.panel_length},
+        "line": {"length_m": settings.line.length, "spectrum": settings.line.spectrum,
+                 "track_recording": {"start_m": start, "length_m": rec_len, "band": "D1"}},
+        "journeys": journeys,
+    }
+    write_json_atomic(Path(f"{out}.truth.json"), truth)
+    return truth
+
+
+def _stderr(msg: str) -> None:
+    print(msg, file=sys.stderr)
