@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
+import scipy.ndimage
 import scipy.signal
 
 from ..data.campaign import Campaign, CampaignMeta, Run
@@ -71,7 +72,7 @@ class Analysis:
 
 
 @dataclass(frozen=True)
-class VirtualChannel:
+class CentreAcceleration:
     """Vertical acceleration at a bogie centre from an off-centre accelerometer and a pitch
     gyro on the same body: z''_c = z''(x_s) + (x_s - x_c) theta'' (positive pitch moves the
     front down, campaign-format.md). Removes the pitch the seed saw in its bogie accelerometer."""
@@ -81,24 +82,97 @@ class VirtualChannel:
     gyro: str
     lever: float  # [m] x_s - x_c
 
+    def sources(self) -> tuple[str, ...]:
+        return (self.accelerometer, self.gyro)
 
-def virtual_channels(meta: CampaignMeta) -> tuple[VirtualChannel, ...]:
+    def evaluate(self, run: Run, i0: int, i1: int, d: np.ndarray):
+        acc, ok_a = _raw(run, self.accelerometer, i0, i1)
+        rate, ok_g = _raw(run, self.gyro, i0, i1)
+        return acc + self.lever * np.gradient(np.nan_to_num(rate), run.time[i0:i1]), ok_a & ok_g
+
+
+@dataclass(frozen=True)
+class RailInput:
+    """Rail acceleration under a bogie from its axle-box accelerometers (wheelsets on the
+    rail): bounce = mean over the bogie's axle boxes [m/s^2], pitch = (front - rear axle
+    mean) / (2 L_b) [rad/s^2], optionally seen ``delay`` metres later, i.e. under a bogie
+    that follows at that distance (the trailing bogie runs over the same rail)."""
+
+    name: str
+    front: tuple[str, ...]
+    rear: tuple[str, ...]
+    kind: str  # 'bounce' | 'pitch'
+    semi_wheelbase: float  # [m]
+    delay: float = 0.0  # [m]
+
+    def sources(self) -> tuple[str, ...]:
+        return self.front + self.rear
+
+    def _value(self, run: Run, i0: int, i1: int):
+        parts, ok = {}, np.ones(i1 - i0, bool)
+        for group, names in (("front", self.front), ("rear", self.rear)):
+            vals = []
+            for n in names:
+                x, v = _raw(run, n, i0, i1)
+                vals.append(x)
+                ok &= v
+            parts[group] = np.mean(vals, axis=0)
+        if self.kind == "bounce":
+            return 0.5 * (parts["front"] + parts["rear"]), ok
+        return (parts["front"] - parts["rear"]) / (2 * self.semi_wheelbase), ok
+
+    def evaluate(self, run: Run, i0: int, i1: int, d: np.ndarray):
+        if self.delay == 0.0:
+            return self._value(run, i0, i1)
+        # the value at distance d - delay, from samples earlier in the same block
+        block = next((a, b) for a, b in run.blocks if a <= i0 < b)
+        j0 = max(block[0], int(np.searchsorted(d, d[i0] - self.delay)) - 2)
+        x, ok = self._value(run, j0, i1)
+        target = d[i0:i1] - self.delay
+        out = np.interp(target, d[j0:i1], x)
+        bad_src = np.interp(target, d[j0:i1], (~ok).astype(float)) > 0
+        return out, ~bad_src & (target >= d[j0])
+
+
+def _raw(run: Run, name: str, i0: int, i1: int):
+    return run.channels[name][i0:i1], run.valid[name][i0:i1]
+
+
+def derived_channels(meta: CampaignMeta) -> dict:
+    """Channels computed from declared sensors and the known geometry (name -> channel)."""
     spacing = meta.geometry.get("bogie_semi_spacing")
+    semi_wb = meta.geometry.get("semi_wheelbase")
+    out: dict = {}
     if spacing is None:
-        return ()
-    out = []
+        return out
     for body, xc in (("bogie1", spacing), ("bogie2", -spacing)):
         accs = [s for s in meta.sensors if s.body == body and s.quantity == "acceleration" and s.direction == "z"]
         gyros = [s for s in meta.sensors if s.body == body and s.quantity == "angular_velocity"
                  and s.direction == "pitch"]
         if accs and gyros:
-            out.append(VirtualChannel(f"{body}_centre_acc_z", accs[0].name, gyros[0].name, accs[0].position[0] - xc))
-    return tuple(out)
+            c = CentreAcceleration(f"{body}_centre_acc_z", accs[0].name, gyros[0].name, accs[0].position[0] - xc)
+            out[c.name] = c
+    if semi_wb is None:
+        return out
+    acc_z = [s for s in meta.sensors if s.quantity == "acceleration" and s.direction == "z"]
+    # leading bogie: axles 1 (front) and 2 (rear); trailing: 3 and 4
+    for bogie, (fa, ra) in (("bogie1", ("axle1", "axle2")), ("bogie2", ("axle3", "axle4"))):
+        front = tuple(s.name for s in acc_z if s.body == fa)
+        rear = tuple(s.name for s in acc_z if s.body == ra)
+        if front and rear:
+            for kind in ("bounce", "pitch"):
+                c = RailInput(f"rail_{kind}_{bogie}", front, rear, kind, semi_wb)
+                out[c.name] = c
+            if bogie == "bogie1":  # bogie 2 runs over the same rail 2 L_v later
+                c = RailInput("rail_bounce_bogie2_from_bogie1", front, rear, "bounce", semi_wb, 2 * spacing)
+                out[c.name] = c
+    return out
 
 
 def plan_analyses(meta: CampaignMeta) -> tuple[Analysis, ...]:
     """Seed Table 3, built from the sensors a campaign declares."""
-    vz = {v.name.split("_")[0]: v for v in virtual_channels(meta)}
+    derived = derived_channels(meta)
+    vz = {n.split("_")[0]: c for n, c in derived.items() if isinstance(c, CentreAcceleration)}
     out = []
     acc_z = [s for s in meta.sensors if s.quantity == "acceleration" and s.direction == "z"]
     for axle in ("axle1", "axle2", "axle3", "axle4"):
@@ -161,11 +235,24 @@ class SegmentalFDD:
     outcomes: tuple[SegmentOutcome, ...] = field(repr=False)
 
 
-def _distance_axis(distance, speed, time) -> np.ndarray:
-    if distance is not None:
+def _distance_axis(distance, speed, time, *, blend: float = 60.0) -> np.ndarray:
+    """Distance [m] along the line, complementary-filtered: over less than ``blend``
+    seconds the increments come from the speed column (GPS Doppler: precise over metres),
+    over longer times the position follows the distance column (GPS fixes: right on
+    average but wandering by metres), so a biased speed cannot drift away. With only
+    one of the two columns, that one."""
+    if speed is None:
         return distance
-    v = np.nan_to_num(speed)
-    return np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(time))])
+    v = speed.copy()
+    bad = ~np.isfinite(v)
+    if bad.any():
+        v[bad] = np.interp(np.flatnonzero(bad), np.flatnonzero(~bad), v[~bad])
+    d = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(time))])
+    if distance is None:
+        return d
+    n = max(1, int(round(blend / float(np.median(np.diff(time))))))
+    correction = scipy.ndimage.uniform_filter1d(distance - d, size=min(n, d.size), mode="nearest")
+    return d + correction
 
 
 def plan_segments(campaign: Campaign, n_needed: int, settings: FDDSettings) -> list[Segment]:
@@ -191,21 +278,14 @@ def plan_segments(campaign: Campaign, n_needed: int, settings: FDDSettings) -> l
     return out
 
 
-def channel_matrix(run: Run, names: tuple[str, ...], vchans: dict[str, VirtualChannel], i0: int, i1: int):
-    """(n_ch, N) SI data and validity for real or virtual channels over samples [i0, i1)."""
+def channel_matrix(run: Run, names: tuple[str, ...], derived: dict, i0: int, i1: int, d: np.ndarray):
+    """(n_ch, N) SI data and validity for declared or derived channels over samples [i0, i1);
+    ``d`` is the run's distance axis [m]."""
     data, ok = [], np.ones(i1 - i0, bool)
-    t = run.time[i0:i1]
     for name in names:
-        if name in vchans:
-            v = vchans[name]
-            acc = run.channels[v.accelerometer][i0:i1]
-            rate = run.channels[v.gyro][i0:i1]
-            ok &= run.valid[v.accelerometer][i0:i1] & run.valid[v.gyro][i0:i1]
-            x = acc + v.lever * np.gradient(np.nan_to_num(rate), t)
-        else:
-            x = run.channels[name][i0:i1]
-            ok &= run.valid[name][i0:i1]
+        x, v = derived[name].evaluate(run, i0, i1, d) if name in derived else _raw(run, name, i0, i1)
         data.append(x)
+        ok &= v
     return np.vstack(data), ok
 
 
@@ -229,8 +309,8 @@ def segment_csd(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.nda
     return np.fft.rfftfreq(nfft, 1 / fs), G
 
 
-def _prepare_segment(run: Run, seg: Segment, names, vchans, settings: FDDSettings, run_rate: float):
-    d = _distance_axis(run.distance, run.speed, run.time)
+def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, settings: FDDSettings,
+                     run_rate: float):
     i0, i1 = int(np.searchsorted(d, seg.start)), int(np.searchsorted(d, seg.end))
     if i1 - i0 < 10:
         return None, "segment outside the run's distance range"
@@ -243,7 +323,7 @@ def _prepare_segment(run: Run, seg: Segment, names, vchans, settings: FDDSetting
         fs = run_rate  # the declared rate, exactly
     padn = int(settings.pad * fs)
     p0, p1 = max(block[0], i0 - padn), min(block[1], i1 + padn)
-    x, ok = channel_matrix(run, names, vchans, p0, p1)
+    x, ok = channel_matrix(run, names, derived, p0, p1, d)
     if not ok[i0 - p0:i1 - p0].all():
         return None, "missing or clipped samples inside the segment"
     # padding only from valid data: trim the padding at the first invalid sample
@@ -271,7 +351,7 @@ def segmental_fdd(campaign: Campaign, analyses: tuple[Analysis, ...] | None = No
     """Segmental FDD of a campaign, one run in memory at a time."""
     meta = campaign.meta
     analyses = plan_analyses(meta) if analyses is None else analyses
-    vchans = {v.name: v for v in virtual_channels(meta)}
+    derived = derived_channels(meta)
     n_needed = max(a.n_fdds for a in analyses)
     plan = plan_segments(campaign, n_needed, settings)
     order = {id(s): k for k, s in enumerate(plan)}
@@ -287,13 +367,14 @@ def segmental_fdd(campaign: Campaign, analyses: tuple[Analysis, ...] | None = No
         if not segs:
             continue
         run = campaign.read_run(path.stem)
+        d = _distance_axis(run.distance, run.speed, run.time)
         if progress:
             progress(f"FDD: {run.run_id}, {len(segs)} segments")
         for seg in segs:
             k = order[id(seg)]
             used_any, reason, speed = False, "", float("nan")
             for a in analyses:
-                prep, why = _prepare_segment(run, seg, a.channels, vchans, settings, meta.sampling_rate)
+                prep, why = _prepare_segment(run, d, seg, a.channels, derived, settings, meta.sampling_rate)
                 if prep is None:
                     reason = why
                     continue

@@ -1,0 +1,320 @@
+"""Modal identification of an in-service campaign: ``railcal identify`` for kind in_service.
+
+Two estimates of every rigid-body mode, from the same random 2 km segments:
+
+* **seed-faithful FDD** (:mod:`.fdd`): the analyses of seed Table 3, summed first
+  singular values, peak picking. Output-only; on bogie sensors the carbody modes barely
+  rise above the rail input, and the wheelbase filter (a notch at v / 4 L_b sweeping
+  across 4-10 Hz with speed) pulls the heavily damped bogie bounce peak low.
+* **segmental input-output** (when the instrumented bogie has axle-box accelerometers and
+  the geometry is known): with the wheelsets on the rail, the axle boxes measure the
+  rail's acceleration, the input. The trailing bogie runs over the same rail 2 L_v later,
+  so its input is the measured one delayed in distance. A two-input H1 estimate over
+  segments at many speeds separates the bogie's response to its own rail from its
+  response to the trailing bogie's rail, which travels only through the carbody and
+  carries nothing but the carbody modes. Rational-fraction fits
+  (:func:`.frf.fit_poles`) give natural frequency and damping of each mode.
+
+Labels: bogie bounce from the bogie-centre acceleration's own-rail FRF, bogie pitch
+from the gyro's FRF to the rail pitch, carbody bounce and pitch from the trailing-rail
+FRF, told apart by the sign of their quasi-static contribution: raising the trailing
+bogie lifts the whole carbody in bounce (+) and lowers its front in pitch (-). Without
+axle-box sensors, FDD peaks are labelled by frequency order against the prior model.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.ndimage
+import scipy.signal
+
+from ..data.campaign import Campaign
+from ..models.car2d import build_car, frequencies_by_label, undamped_modes
+from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters
+from ..models.vehicles import INTERCITY_TRAILER
+from ..signals.spectral_lines import LineSettings, SpectralLine, classify_lines
+from .fdd import Analysis, FDDSettings, SegmentalFDD, derived_channels, plan_analyses, segmental_fdd
+from .frf import Pole, fit_poles, h1
+
+RIGID_LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
+IO_ANALYSIS = "input_output"
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    fdd: FDDSettings = FDDSettings()
+    lines: LineSettings = LineSettings()
+    carbody_band: tuple[float, float] = (0.4, 4.0)  # [Hz]
+    bogie_band: tuple[float, float] = (2.5, 20.0)  # [Hz]
+    extra_poles: int = 1  # computational poles that absorb what lies outside the band
+    peak_prominence: float = 0.1  # [decades] of a summed-singular-value peak, at least
+    min_coherence: float = 0.5  # FRF bins below this are not fitted
+
+
+@dataclass(frozen=True)
+class IdentifiedMode:
+    label: str
+    frequency_hz: float  # natural frequency
+    damping_ratio: float | None
+    damped_frequency_hz: float | None
+    method: str  # 'input_output_fit' | 'fdd_peak'
+    source: str  # which analysis / FRF
+    fdd_peak_hz: float | None  # the seed-faithful FDD estimate, where a peak was found
+    prior_hz: float | None  # the prior model's frequency, for reference
+
+    def to_json(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class RejectedPeak:
+    frequency_hz: float
+    analysis: str
+    reason: str
+    wavelength_m: float | None = None
+
+    def to_json(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if v is not None or k != "wavelength_m"}
+
+
+@dataclass(frozen=True)
+class FRF:
+    name: str
+    frequency: np.ndarray  # [Hz]
+    H: np.ndarray  # complex, dimensionless (acceleration / acceleration)
+    coherence: np.ndarray
+    description: str
+
+
+@dataclass(frozen=True)
+class InServiceIdentification:
+    campaign: str
+    modes: tuple[IdentifiedMode, ...]
+    rejected_peaks: tuple[RejectedPeak, ...]
+    spectral_lines: tuple[SpectralLine, ...]
+    fdd: SegmentalFDD = field(repr=False)
+    fdd_peaks: dict = field(repr=False)
+    frfs: dict = field(repr=False)
+    prior_frequencies: dict = field(default_factory=dict)
+
+    def mode(self, label: str) -> IdentifiedMode:
+        for m in self.modes:
+            if m.label == label:
+                return m
+        raise KeyError(label)
+
+    def to_json(self) -> dict:
+        segs = self.fdd.outcomes
+        return {
+            "campaign": self.campaign,
+            "kind": "in_service",
+            "modes": [m.to_json() for m in self.modes],
+            "rejected_peaks": [p.to_json() for p in self.rejected_peaks],
+            "spectral_lines": [ln.to_json() for ln in self.spectral_lines],
+            "fdd": {
+                name: {"channels": list(r.analysis.channels), "n_fdds_summed": r.n_used,
+                       "peaks_hz": [float(x) for x in self.fdd_peaks.get(name, [])],
+                       "segment_speed_range_m_s": [float(r.speeds.min()), float(r.speeds.max())]}
+                for name, r in self.fdd.results.items()
+            },
+            "segments": {"drawn": len(segs), "used": sum(o.used for o in segs),
+                         "rejected": [{"run": o.segment.run_id, "start_m": o.segment.start, "reason": o.reason}
+                                      for o in segs if not o.used]},
+            "prior_frequencies_hz": self.prior_frequencies,
+            "settings": {"segment_length_m": self.fdd.settings.segment_length,
+                         "band_hz": list(self.fdd.settings.band), "filter_order": self.fdd.settings.order,
+                         "seed": self.fdd.settings.seed},
+        }
+
+
+def prior_parameters(campaign: Campaign) -> CarParameters:
+    """The campaign's prior knowledge as a car: prior nominals and geometry over the catalogue."""
+    meta = campaign.meta
+    values = {k: p.nominal for k, p in meta.priors.items() if k in CAR_PARAMETER_SPECS}
+    if "bogie_semi_spacing" in meta.geometry:
+        values["L_v"] = meta.geometry["bogie_semi_spacing"]
+    if "semi_wheelbase" in meta.geometry:
+        values["L_b"] = meta.geometry["semi_wheelbase"]
+    return INTERCITY_TRAILER.replace(**values)
+
+
+def _refine_peak(f: np.ndarray, y: np.ndarray, k: int) -> float:
+    if 0 < k < y.size - 1:
+        a, b, c = np.log(y[k - 1:k + 2])
+        denom = a - 2 * b + c
+        if denom < 0:
+            return float(f[k] + 0.5 * (a - c) / denom * (f[1] - f[0]))
+    return float(f[k])
+
+
+def fdd_peaks(f: np.ndarray, sv1: np.ndarray, prominence: float, *, smooth_hz: float = 0.1,
+              span: float = 1.5, ripple_factor: float = 5.0) -> list[tuple[float, float]]:
+    """(frequency [Hz], prominence [decades]) of the peaks of a summed first singular value.
+
+    The log spectrum is smoothed over ``smooth_hz``. A peak's prominence is measured
+    within [f / span, f * span] (a damped mode is as wide as its frequency times its
+    damping, and a broad rising trend is not a peak) and must exceed both
+    ``prominence`` and ``ripple_factor`` times the spectrum's own ripple (robust spread
+    of the log spectrum about its 1 Hz running mean), so the threshold follows how
+    many FDDs were summed. A peak whose neighbourhood reaches past the analysed band is
+    not reported: near the band edges a rising spectrum meets the band-pass filter's
+    skirt and makes a maximum that is the filter's, not the vehicle's.
+    """
+    df = f[1] - f[0]
+    y = np.log10(np.maximum(sv1, 1e-300))
+    ys = scipy.ndimage.uniform_filter1d(y, max(1, int(round(smooth_hz / df))), mode="nearest")
+    trend = scipy.ndimage.uniform_filter1d(y, max(3, int(round(1.0 / df))), mode="nearest")
+    ripple = 1.4826 * float(np.median(np.abs(ys - trend - np.median(ys - trend))))
+    threshold = max(prominence, ripple_factor * ripple)
+    out = []
+    for i in scipy.signal.find_peaks(ys)[0]:
+        if f[i] / span < f[0] or f[i] * span > f[-1]:
+            continue
+        lo = int(np.searchsorted(f, f[i] / span))
+        hi = int(np.searchsorted(f, f[i] * span))
+        left, right = ys[lo:i + 1], ys[i:hi]
+        if left.max() > ys[i] or right.max() > ys[i] or lo >= i or hi <= i + 1:
+            continue  # not the highest point of its neighbourhood, or at the band edge
+        prom = ys[i] - max(left.min(), right.min())
+        if prom >= threshold:
+            out.append((_refine_peak(f, sv1, int(i)), float(prom)))
+    return out
+
+
+def _static_sign(pole: Pole, f: np.ndarray, H: np.ndarray) -> float:
+    """Sign of a mode's quasi-static contribution, from a one-pole fit of H near the pole."""
+    lam = pole.eigenvalue
+    sel = np.abs(f - pole.frequency_hz) < max(2.5 * pole.damping_ratio * pole.frequency_hz, 3 * (f[1] - f[0]))
+    s = 1j * 2 * np.pi * f[sel]
+    # H ~ R/(s - lam) + conj(R)/(s - conj(lam)) + c0 near the pole
+    A = np.column_stack([1 / (s - lam) + 1 / (s - np.conj(lam)), 1j / (s - lam) - 1j / (s - np.conj(lam)),
+                         np.ones_like(s), 1j * np.ones_like(s)])
+    Ar = np.vstack([A.real, A.imag])
+    br = np.concatenate([H[sel].real, H[sel].imag])
+    x, *_ = np.linalg.lstsq(Ar, br, rcond=None)
+    R = x[0] + 1j * x[1]
+    return float(np.sign(np.real(-2 * R / lam)))
+
+
+def _strongest(poles: list[Pole], n: int) -> list[Pole]:
+    return sorted(sorted(poles, key=lambda p: -p.residue_magnitude)[:n], key=lambda p: p.frequency_hz)
+
+
+def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = IdentifySettings(),
+                        progress=None) -> InServiceIdentification:
+    meta = campaign.meta
+    prior = prior_parameters(campaign)
+    prior_f = frequencies_by_label(undamped_modes(build_car(prior)))
+    analyses = list(plan_analyses(meta))
+    derived = derived_channels(meta)
+    io_channels = ("rail_bounce_bogie1", "rail_bounce_bogie2_from_bogie1", "bogie1_centre_acc_z",
+                   "rail_pitch_bogie1")
+    gyro = [s.name for s in meta.sensors if s.body == "bogie1" and s.quantity == "angular_velocity"
+            and s.direction == "pitch"]
+    have_io = all(c in derived for c in io_channels) and bool(gyro)
+    if have_io:
+        analyses.append(Analysis(IO_ANALYSIS, io_channels + (gyro[0],), 50, "input_output", "bogie1"))
+    fdd = segmental_fdd(campaign, tuple(analyses), settings=settings.fdd, progress=progress)
+    if progress:
+        progress("spectral lines: steady-speed windows")
+    lines = classify_lines(campaign, settings=settings.lines)
+
+    peaks = {}
+    for name, r in fdd.results.items():
+        if name == IO_ANALYSIS:
+            continue
+        peaks[name] = fdd_peaks(r.frequency, r.singular_values[0], settings.peak_prominence)
+
+    def fdd_estimate(analysis_role: str, band) -> tuple[float, float] | None:
+        cands = [(fr, pr) for name, r in fdd.results.items() if r.analysis.role == analysis_role
+                 for fr, pr in peaks.get(name, []) if band[0] <= fr <= band[1]]
+        return max(cands, key=lambda x: x[1]) if cands else None
+
+    modes: list[IdentifiedMode] = []
+    frfs: dict[str, FRF] = {}
+    if have_io:
+        r = fdd.results[IO_ANALYSIS]
+        f = r.frequency
+        H, coh = h1(r.csd, [2], [0, 1])
+        Hp, cohp = h1(r.csd, [4], [3])
+        Hp_acc = Hp[:, 0, 0] * (1j * 2 * np.pi * f)  # pitch rate -> pitch acceleration
+        frfs["own_rail"] = FRF("own_rail", f, H[:, 0, 0], coh[:, 0],
+                               "bogie-1 centre acceleration / rail acceleration under bogie 1")
+        frfs["trailing_rail"] = FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
+                                    "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)")
+        frfs["pitch"] = FRF("pitch", f, Hp_acc, cohp[:, 0],
+                            "bogie-1 pitch acceleration / rail pitch acceleration under bogie 1")
+        w = lambda c: (c >= settings.min_coherence).astype(float)  # noqa: E731
+        cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles,
+                                  weights=w(coh[:, 0])), 2)
+        signs = {p: _static_sign(p, f, H[:, 0, 1]) for p in cb}
+        bounce = [p for p in cb if signs[p] > 0]
+        pitch = [p for p in cb if signs[p] < 0]
+        if len(bounce) == 1 and len(pitch) == 1:
+            cb_labels = {bounce[0]: "carbody_bounce", pitch[0]: "carbody_pitch"}
+        else:  # signs inconclusive: frequency order of the prior model
+            order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
+            cb_labels = dict(zip(cb, order))
+        fitted = {lbl: (p, "trailing_rail") for p, lbl in cb_labels.items()}
+        bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles,
+                                  weights=w(coh[:, 0])), 1)
+        bp = _strongest(fit_poles(f, Hp_acc, settings.bogie_band, 1 + settings.extra_poles,
+                                  weights=w(cohp[:, 0])), 1)
+        if bb:
+            fitted["bogie_bounce"] = (bb[0], "own_rail")
+        if bp:
+            fitted["bogie_pitch"] = (bp[0], "pitch")
+        for lbl in RIGID_LABELS:
+            if lbl not in fitted:
+                continue
+            p, src = fitted[lbl]
+            role = "bogie_pitch" if lbl == "bogie_pitch" else "bogie_bounce"
+            near = [fr for name, pk in peaks.items() for fr, _ in pk
+                    if abs(fr / p.frequency_hz - 1) < 0.1 and fdd.results[name].analysis.role == role]
+            fdd_hz = min(near, key=lambda fr: abs(fr - p.frequency_hz)) if near else None
+            modes.append(IdentifiedMode(lbl, p.frequency_hz, p.damping_ratio, p.damped_frequency_hz,
+                                        "input_output_fit", src, fdd_hz, prior_f.get(lbl)))
+    else:
+        est = {"bogie_pitch": fdd_estimate("bogie_pitch", settings.bogie_band),
+               "bogie_bounce": fdd_estimate("bogie_bounce", settings.bogie_band)}
+        cands = sorted([(fr, pr) for name, r in fdd.results.items() if r.analysis.role == "bogie_bounce"
+                        for fr, pr in peaks.get(name, []) if settings.carbody_band[0] <= fr <= settings.carbody_band[1]],
+                       key=lambda x: -x[1])[:2]
+        order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
+        for lbl, c in zip(order, sorted(cands)):
+            est[lbl] = c
+        for lbl in RIGID_LABELS:
+            if est.get(lbl):
+                modes.append(IdentifiedMode(lbl, est[lbl][0], None, None, "fdd_peak", "fdd", est[lbl][0],
+                                            prior_f.get(lbl)))
+
+    rejected = _rejected(peaks, fdd, modes, lines)
+    return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
+                                   frfs, {k: float(v) for k, v in prior_f.items()})
+
+
+def _rejected(peaks, fdd: SegmentalFDD, modes, lines) -> list[RejectedPeak]:
+    out = []
+    for name, pk in peaks.items():
+        role = fdd.results[name].analysis.role
+        for fr, _ in pk:
+            match = [m for m in modes if abs(fr / m.frequency_hz - 1) < 0.05]
+            if match and role != "axle_bounce":
+                continue  # the FDD's view of an identified mode
+            if role == "axle_bounce":
+                reason = ("axle-box channels measure the rail's own motion (wheelsets on the rail): a peak here "
+                          "is track content, not an axle mode")
+                if match:
+                    reason += f"; coincides with {match[0].label} seen through the primary suspension"
+            else:
+                reason = "not a rigid-body mode of the 2D car: no identified mode within 5 %"
+            out.append(RejectedPeak(float(fr), name, reason))
+    for ln in lines:
+        if ln.kind == "speed_dependent":
+            out.append(RejectedPeak(float(ln.frequency_hz), "spectral_lines",
+                                    f"speed-dependent excitation: {ln.interpretation}", ln.wavelength_m))
+        elif ln.kind == "speed_independent" and len(ln.channels) == 1:
+            out.append(RejectedPeak(float(ln.frequency_hz), "spectral_lines",
+                                    f"non-vehicle tone: {ln.interpretation}"))
+    return out
