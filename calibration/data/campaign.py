@@ -296,26 +296,45 @@ def _read_csv(path: Path) -> pd.DataFrame:
         dup = sorted({n for n in names if names.count(n) > 1})
         raise CampaignError(f"duplicate column(s) {', '.join(dup)} in the header", path=path, line=1)
     try:
-        df = pd.read_csv(path, comment="#", dtype=str, skip_blank_lines=True, engine="c",
-                         keep_default_na=False, na_filter=False)
+        # fast path: every cell a number, empty or nan
+        df = pd.read_csv(path, comment="#", dtype=np.float64, skip_blank_lines=True, engine="c",
+                         na_values=["", "nan", "NaN", "NAN"], keep_default_na=False, skipinitialspace=True)
+    except ValueError:
+        # slow path, only to say which cell is not a number (see _to_float_columns)
+        try:
+            df = pd.read_csv(path, comment="#", dtype=str, skip_blank_lines=True, engine="c",
+                             keep_default_na=False, na_filter=False)
+        except pd.errors.ParserError as e:
+            _raise_parser_error(path, e)
     except pd.errors.ParserError as e:
-        m = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(e))
-        if m:
-            # pandas counts lines without comments; map back to the file's own numbering
-            lines = _line_numbers(path)
-            idx = int(m.group(2)) - 2
-            line = int(lines[idx]) if 0 <= idx < lines.size else None
-            raise CampaignError(f"expected {m.group(1)} comma-separated fields, found {m.group(3)}", path=path,
-                                line=line) from None
-        raise CampaignError(f"cannot parse CSV: {e}", path=path) from None
+        _raise_parser_error(path, e)
     df.columns = [c.strip() for c in df.columns]
     return df
+
+
+def _raise_parser_error(path: Path, e: Exception):
+    """Name the first row whose field count differs from the header's (file line numbers)."""
+    expected = None
+    with open(path, "rb") as f:
+        for i, raw in enumerate(f, start=1):
+            if raw.lstrip().startswith(b"#") or not raw.strip():
+                continue
+            n = raw.count(b",") + 1
+            if expected is None:
+                expected = n
+            elif n != expected:
+                raise CampaignError(f"expected {expected} comma-separated fields (as the header), found {n}",
+                                    path=path, line=i) from None
+    raise CampaignError(f"cannot parse CSV: {e}", path=path) from None
 
 
 def _to_float_columns(df: pd.DataFrame, path: Path, is_csv: bool) -> dict[str, np.ndarray]:
     out = {}
     for col in df.columns:
         s = df[col]
+        if pd.api.types.is_float_dtype(s):
+            out[col] = s.to_numpy(dtype=float)
+            continue
         if is_csv:
             text = s.str.strip()
             empty = (text == "") | (text.str.lower() == "nan")
@@ -334,39 +353,15 @@ def _to_float_columns(df: pd.DataFrame, path: Path, is_csv: bool) -> dict[str, n
     return out
 
 
-def read_run_file(path: Path, meta: CampaignMeta) -> Run:
-    """Read and check one run file (CSV or Parquet) and convert it to SI units."""
-    path = Path(path)
-    is_csv = path.suffix.lower() == ".csv"
-    if is_csv:
-        df = _read_csv(path)
-    else:
-        try:
-            df = pq.read_table(path).to_pandas()
-        except (pa.ArrowInvalid, OSError) as e:
-            raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
-    cols = _to_float_columns(df, path, is_csv)
-    names = list(cols)
+def _check_axes(cols: dict, path: Path, meta: CampaignMeta, is_csv: bool):
+    """Check the time, distance and speed columns; returns (time, distance | None, speed | None)."""
     line_of = (lambda row: int(_line_numbers(path)[row])) if is_csv else (lambda row: None)
     where_row = (lambda row: {"line": line_of(row)}) if is_csv else (lambda row: {})
     row_word = "" if is_csv else " (row {row})"
-
     if "time" not in cols:
         raise CampaignError("missing required column 'time'", path=path, column="time")
-    declared = {s.name for s in meta.sensors}
-    known = declared | {"time", "distance", "speed"} | {f"{n}_clipped" for n in declared}
-    for c in names:
-        if c not in known:
-            near = difflib.get_close_matches(c, sorted(declared), n=1)
-            hint = f"; did you mean '{near[0]}'?" if near else ""
-            raise CampaignError(f"unknown column, not declared in campaign.toml [[sensors]]{hint}", path=path,
-                                column=c)
-    for s in meta.sensors:
-        if s.name not in cols:
-            raise CampaignError(f"missing column for sensor declared in campaign.toml", path=path, column=s.name)
     if meta.kind == "in_service" and "distance" not in cols and "speed" not in cols:
         raise CampaignError("an in-service run needs a 'distance' or a 'speed' column", path=path, column="distance")
-
     t = cols["time"]
     if t.size < 2:
         raise CampaignError("fewer than two samples", path=path, column="time")
@@ -396,6 +391,35 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
         raise CampaignError("negative speed" + row_word.format(row=row), path=path, column="speed",
                             **where_row(row))
 
+    return t, distance, speed
+
+
+def read_run_file(path: Path, meta: CampaignMeta) -> Run:
+    """Read and check one run file (CSV or Parquet) and convert it to SI units."""
+    path = Path(path)
+    is_csv = path.suffix.lower() == ".csv"
+    if is_csv:
+        df = _read_csv(path)
+    else:
+        try:
+            df = pq.read_table(path).to_pandas()
+        except (pa.ArrowInvalid, OSError) as e:
+            raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
+    cols = _to_float_columns(df, path, is_csv)
+    names = list(cols)
+    declared = {s.name for s in meta.sensors}
+    known = declared | {"time", "distance", "speed"} | {f"{n}_clipped" for n in declared}
+    for c in names:
+        if c not in known:
+            near = difflib.get_close_matches(c, sorted(declared), n=1)
+            hint = f"; did you mean '{near[0]}'?" if near else ""
+            raise CampaignError(f"unknown column, not declared in campaign.toml [[sensors]]{hint}", path=path,
+                                column=c)
+    for s in meta.sensors:
+        if s.name not in cols:
+            raise CampaignError(f"missing column for sensor declared in campaign.toml", path=path, column=s.name)
+    t, distance, speed = _check_axes(cols, path, meta, is_csv)
+    dt = np.diff(t)
     channels, valid = {}, {}
     for s in meta.sensors:
         raw = cols[s.name]
@@ -484,14 +508,21 @@ class Campaign:
         return [read_track_file(p) for p in self.track_paths]
 
     def run_summary(self, path: Path) -> dict:
-        """Time and distance range of a run from its own columns only (cheap for Parquet)."""
+        """Checked time, distance and speed of a run, reading only those columns (for
+        planning a streaming pass without holding the sensor data)."""
+        path = Path(path)
+        axes = ("time", "distance", "speed")
         if path.suffix.lower() == ".parquet":
-            cols = [c for c in ("time", "distance", "speed") if c in pq.read_schema(path).names]
-            tab = pq.read_table(path, columns=cols).to_pandas()
+            try:
+                names = pq.read_schema(path).names
+                df = pq.read_table(path, columns=[c for c in axes if c in names]).to_pandas()
+            except (pa.ArrowInvalid, OSError) as e:
+                raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
+            cols = _to_float_columns(df, path, False)
         else:
-            tab = pd.read_csv(path, comment="#", usecols=lambda c: c.strip() in ("time", "distance", "speed"))
-            tab.columns = [c.strip() for c in tab.columns]
-        return {c: tab[c].to_numpy(float) for c in tab.columns}
+            cols = {k: v for k, v in _to_float_columns(_read_csv(path), path, True).items() if k in axes}
+        t, distance, speed = _check_axes(cols, path, self.meta, path.suffix.lower() == ".csv")
+        return {k: v for k, v in (("time", t), ("distance", distance), ("speed", speed)) if v is not None}
 
 
 def open_campaign(root) -> Campaign:

@@ -50,6 +50,11 @@ class IdentifySettings:
     extra_poles: int = 1  # computational poles that absorb what lies outside the band
     peak_prominence: float = 0.1  # [decades] of a summed-singular-value peak, at least
     min_coherence: float = 0.5  # FRF bins below this are not fitted
+    # The seed sums 20-50 FDDs (Table 3) and the FDD analyses keep that. The input-output
+    # estimate averages cross-spectra, whose variance falls with every segment: it uses
+    # 200 (random, possibly overlapping, from all runs). On the demo campaign the carbody
+    # bounce error went -2.15 %, -1.57 %, -0.75 % with 50, 100, 200 segments.
+    io_segments: int = 200
 
 
 @dataclass(frozen=True)
@@ -114,7 +119,8 @@ class InServiceIdentification:
             "spectral_lines": [ln.to_json() for ln in self.spectral_lines],
             "fdd": {
                 name: {"channels": list(r.analysis.channels), "n_fdds_summed": r.n_used,
-                       "peaks_hz": [float(x) for x in self.fdd_peaks.get(name, [])],
+                       "peaks": [{"frequency_hz": fr, "prominence_decades": pr}
+                                 for fr, pr in self.fdd_peaks.get(name, [])],
                        "segment_speed_range_m_s": [float(r.speeds.min()), float(r.speeds.max())]}
                 for name, r in self.fdd.results.items()
             },
@@ -214,7 +220,8 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             and s.direction == "pitch"]
     have_io = all(c in derived for c in io_channels) and bool(gyro)
     if have_io:
-        analyses.append(Analysis(IO_ANALYSIS, io_channels + (gyro[0],), 50, "input_output", "bogie1"))
+        analyses.append(Analysis(IO_ANALYSIS, io_channels + (gyro[0],), settings.io_segments, "input_output",
+                                 "bogie1"))
     fdd = segmental_fdd(campaign, tuple(analyses), settings=settings.fdd, progress=progress)
     if progress:
         progress("spectral lines: steady-speed windows")

@@ -40,6 +40,7 @@ class LineSettings:
     presence_db: float = 3.0  # of the tracked peak in one window
     search: float = 0.03  # relative search half-width when tracking
     min_speed_ratio: float = 1.15  # fastest / slowest window needed to tell the kinds apart
+    tone_presence: float = 0.6  # a fixed tone is there at every speed: in this share of windows at least
     impact_highpass: float = 20.0  # [Hz] before the energy envelope is formed
     impact_lags: tuple[float, float] = (5.0, 100.0)  # [m] spacings searched for periodic impacts
     impact_z: float = 6.0  # significance of the autocorrelation peak (robust z-score)
@@ -219,7 +220,7 @@ def classify_lines(campaign: Campaign, channels: tuple[str, ...] | None = None, 
                 if not settings.min_frequency <= fe <= f[-2]:
                     continue
                 r = _local_peak(w, f, fe, settings.search)
-                if r is not None and r[1] * 10 >= settings.presence_db:
+                if r is not None and r[0] > 0 and r[1] * 10 >= settings.presence_db:
                     found.append((sp, r[0], r[1]))
             per_channel.append(found)
         best = int(np.argmax([len(x) for x in per_channel]))
@@ -239,7 +240,7 @@ def classify_lines(campaign: Campaign, channels: tuple[str, ...] | None = None, 
             se = float(np.sqrt(sigma2 * np.linalg.inv(X.T @ X)[0, 0]))
             if abs(alpha - 1) < 0.1:
                 kind = "speed_dependent"
-            elif abs(alpha) < 0.1:
+            elif abs(alpha) < 0.1 and len(found) >= settings.tone_presence * len(windows):
                 kind = "speed_independent"
             else:
                 kind = "ambiguous"
@@ -267,7 +268,16 @@ def classify_lines(campaign: Campaign, channels: tuple[str, ...] | None = None, 
                 text = "neither fixed nor proportional to speed"
         lines.append(SpectralLine(kind, freq, wavelength, alpha, se, present, prominence, len(found),
                                   (float(sp.min()), float(sp.max())), text))
-    lines += _periodic_impacts(windows, channels, speeds, settings)
+    impacts = _periodic_impacts(windows, channels, speeds, settings)
+    if impacts:
+        spacing = impacts[0].wavelength_m
+        for i, ln in enumerate(lines):
+            if ln.kind == "speed_dependent" and ln.wavelength_m:
+                k = round(spacing / ln.wavelength_m)
+                if k >= 2 and abs(spacing / ln.wavelength_m - k) < 0.01 * k:
+                    lines[i] = SpectralLine(**{**ln.__dict__, "interpretation": ln.interpretation
+                                               + f"; harmonic {k} of the {spacing:.2f} m impacts"})
+    lines += impacts
     # one entry per physical line: merge duplicates found in several channels
     merged: list[SpectralLine] = []
     for ln in sorted(lines, key=lambda x: -x.n_windows):

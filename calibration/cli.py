@@ -1,0 +1,181 @@
+"""The ``railcal`` command line (shared/spec/interfaces.md).
+
+Every command prints a one-line summary, writes JSON with ``--out``, exits 0 on success,
+2 on bad input (the message names the file, key or column), 1 on internal failure.
+Progress goes to stderr unless ``--quiet``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import traceback
+from pathlib import Path
+
+from .data.campaign import open_campaign, write_json_atomic
+from .data.errors import InputError
+from .models.parameters import CAR_PARAMETER_SPECS, ParameterError
+
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's own usage errors are bad input too: exit 2
+        self.print_usage(sys.stderr)
+        print(f"railcal: error: {message}", file=sys.stderr)
+        raise SystemExit(EXIT_INPUT)
+
+
+def _progress(args):
+    if getattr(args, "quiet", False):
+        return None
+    return lambda msg: print(msg, file=sys.stderr, flush=True)
+
+
+# ------------------------------------------------------------------------------ synth
+def cmd_synth_in_service(args) -> int:
+    from .truth.effects import parse_effect
+    from .truth.in_service import InServiceSettings, synth_in_service
+    from .truth.track import LineSpec
+
+    effect = parse_effect(args.effect, "in_service")
+    if args.journeys < 1:
+        raise InputError(f"--journeys must be >= 1, got {args.journeys}", key="--journeys")
+    if not 5.0 <= args.length_km <= 500.0:
+        raise InputError(f"--length-km must be within 5..500 km, got {args.length_km}", key="--length-km")
+    settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0))
+    truth = synth_in_service(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
+                             overwrite=args.force, progress=_progress(args))
+    f = truth["frequencies_hz"]
+    print(f"wrote {args.out} ({args.journeys} journeys x {args.length_km:g} km) and {args.out}.truth.json; "
+          + ", ".join(f"{k} {v:.3f} Hz" for k, v in f.items()))
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- identify
+def cmd_identify(args) -> int:
+    from .identification.fdd import FDDSettings
+    from .identification.in_service import IdentifySettings, identify_in_service
+    from .identification.plots import plot_identification
+
+    campaign = open_campaign(args.campaign)
+    if campaign.meta.kind != "in_service":
+        raise InputError(f"identification of {campaign.meta.kind} campaigns is not available yet "
+                         "(in-service campaigns only)", path=campaign.root / "campaign.toml", key="kind")
+    settings = IdentifySettings(fdd=FDDSettings(seed=args.seed))
+    result = identify_in_service(campaign, settings=settings, progress=_progress(args))
+    out = result.to_json()
+    png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
+    truth_path = Path(f"{Path(args.campaign).resolve()}.truth.json")
+    truth = json.loads(truth_path.read_text())["frequencies_hz"] if truth_path.is_file() else None
+    plot_identification(result, png, truth=truth)
+    out["plot"] = str(png)
+    write_json_atomic(args.out, out)
+    modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
+    print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected_peaks)} peaks rejected; "
+          f"wrote {args.out} and {png}")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------ modes
+def _parse_params(items) -> dict[str, float]:
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise InputError(f"expected NAME=VALUE, got {item!r}", key="--param")
+        if name not in CAR_PARAMETER_SPECS:
+            raise InputError(f"unknown parameter {name!r}; known: {', '.join(CAR_PARAMETER_SPECS)}", key="--param")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise InputError(f"value of {name} is not a number: {value!r}", key="--param") from None
+    return out
+
+
+def cmd_modes(args) -> int:
+    from .models.car2d import build_car, damped_modes, undamped_modes
+    from .models.vehicles import INTERCITY_TRAILER
+
+    if args.model != "car2d":
+        raise InputError(f"model {args.model!r} is not available yet; have: car2d", key="--model")
+    p = INTERCITY_TRAILER.replace(**_parse_params(args.param))
+    asm = build_car(p)
+    und = undamped_modes(asm)
+    dmp = {m.label: m for m in damped_modes(asm)}
+    modes = [{"label": m.label, "frequency_hz": m.frequency_hz,
+              "damping_ratio": dmp[m.label].damping_ratio if m.label in dmp else None,
+              "damped_frequency_hz": dmp[m.label].damped_frequency_hz if m.label in dmp else None}
+             for m in und]
+    if args.out:
+        write_json_atomic(args.out, {"model": "car2d", "parameters": p.as_dict(), "modes": modes})
+    print("; ".join(f"{m['label']} {m['frequency_hz']:.3f} Hz" for m in modes))
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------- demo
+def cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    report = run_demo(Path(args.out), progress=_progress(args))
+    print(f"demo finished: report {report}")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------- main
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="railcal", description="Calibrate railway vehicle vibration models from measured data.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    synth = sub.add_parser("synth", help="write a synthetic campaign and its truth")
+    ssub = synth.add_subparsers(dest="kind", required=True, parser_class=_Parser)
+    s = ssub.add_parser("in-service", help="in-service journeys (bogie and axle-box sensors)")
+    s.add_argument("out", help="campaign folder to create")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--journeys", type=int, default=10)
+    s.add_argument("--length-km", type=float, default=40.0, help="length of the line [km]")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE]")
+    s.add_argument("--force", action="store_true", help="replace an existing folder")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_synth_in_service)
+
+    s = sub.add_parser("identify", help="modal identification of a campaign")
+    s.add_argument("campaign")
+    s.add_argument("--out", required=True, help="JSON result")
+    s.add_argument("--plot", default=None, help="PNG (default: beside --out)")
+    s.add_argument("--seed", type=int, default=0, help="seed of the random segment draw")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_identify)
+
+    s = sub.add_parser("modes", help="eigen-analysis of a model")
+    s.add_argument("--model", default="car2d")
+    s.add_argument("--param", action="append", metavar="NAME=VALUE")
+    s.add_argument("--out", default=None)
+    s.set_defaults(func=cmd_modes)
+
+    s = sub.add_parser("demo", help="the whole job on the built-in example")
+    s.add_argument("--out", default="demo_output")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except (InputError, ParameterError) as e:
+        print(f"railcal: error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("railcal: interrupted", file=sys.stderr)
+        return EXIT_INTERNAL
+    except Exception:  # an internal failure: say so, with the traceback for a bug report
+        traceback.print_exc()
+        print("railcal: internal error (exit 1); please report the traceback above", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

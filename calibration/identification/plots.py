@@ -1,0 +1,59 @@
+"""Figures of an in-service identification (read the result object; compute nothing new)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .in_service import InServiceIdentification  # noqa: E402
+
+_COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_bounce": "tab:green",
+            "bogie_pitch": "tab:red"}
+
+
+def plot_identification(result: InServiceIdentification, path, *, truth: dict | None = None) -> Path:
+    """Summed singular values with the FDD picks, and the input-output FRFs with the fitted
+    modes; dotted lines mark ``truth`` frequencies when given (synthetic campaigns)."""
+    panels = [n for n in result.fdd.results if n != "input_output"]
+    nrows = 2 if result.frfs else 1
+    fig, axes = plt.subplots(nrows, 1, figsize=(10, 4.2 * nrows), squeeze=False)
+    ax = axes[0, 0]
+    for name in panels:
+        r = result.fdd.results[name]
+        y = r.singular_values[0] / np.median(r.singular_values[0])
+        line, = ax.loglog(r.frequency, y, lw=1, label=f"{name} (N={r.n_used})")
+        for fr, _ in result.fdd_peaks.get(name, []):
+            k = int(np.argmin(np.abs(r.frequency - fr)))
+            ax.plot(fr, y[k], "v", color=line.get_color(), ms=8)
+    ax.set_title("Segmental FDD: summed first singular values (normalised), picks marked")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("sum of s1 / median")
+    ax.set_xlim(result.fdd.settings.band)
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(True, which="both", alpha=0.3)
+    if result.frfs:
+        ax = axes[1, 0]
+        for frf in result.frfs.values():
+            ax.loglog(frf.frequency, np.abs(frf.H), lw=1, label=frf.description)
+        for m in result.modes:
+            ax.axvline(m.frequency_hz, color=_COLOURS.get(m.label, "k"), lw=1.5,
+                       label=f"{m.label} {m.frequency_hz:.3f} Hz, zeta {m.damping_ratio or float('nan'):.3f}")
+        ax.set_title("Segmental input-output: FRFs from the measured rail input, fitted modes")
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_ylabel("|H| [-]")
+        ax.set_xlim(result.fdd.settings.band)
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+    if truth:
+        for a in axes[:, 0]:
+            for lbl, f in truth.items():
+                a.axvline(f, color=_COLOURS.get(lbl, "k"), ls=":", lw=1)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,48 @@
+"""Shared fixtures: small campaigns written by the project's own writer."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calibration.data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor
+from calibration.truth.in_service import InServiceSettings, synth_in_service
+from calibration.truth.track import LineSpec
+
+TINY_SENSORS = (
+    Sensor("bogie1_acc_z", "acceleration", "g", "bogie1", "z", (8.5, 0.6, 0.7)),
+    Sensor("bogie1_gyro_pitch", "angular_velocity", "deg/s", "bogie1", "pitch", (8.5, 0.6, 0.7), 2.0),
+)
+
+
+def tiny_meta(**changes) -> CampaignMeta:
+    base = dict(kind="in_service", name="tiny", vehicle="test car", sensors=TINY_SENSORS, sampling_rate=100.0,
+                geometry={"bogie_semi_spacing": 8.0, "semi_wheelbase": 1.25},
+                priors={"m_v": Prior(38747.0, 36850.0, 40644.0)})
+    base.update(changes)
+    return CampaignMeta(**base)
+
+
+def tiny_columns(n: int = 400) -> dict[str, np.ndarray]:
+    t = np.arange(n) / 100.0
+    return {"time": t, "distance": 30.0 * t, "speed": np.full(n, 30.0),
+            "bogie1_acc_z": 1.0 + 0.01 * np.sin(2 * np.pi * 5 * t),
+            "bogie1_gyro_pitch": 0.5 * np.sin(2 * np.pi * 7 * t)}
+
+
+@pytest.fixture
+def tiny_campaign(tmp_path):
+    """A valid two-sensor in-service campaign (CSV) with one run, 4 s at 100 Hz."""
+    root = tmp_path / "tiny"
+    with CampaignWriter(root, tiny_meta()) as w:
+        w.write_run("run_a", tiny_columns())
+        w.commit()
+    return root
+
+
+@pytest.fixture(scope="session")
+def synthetic_campaign(tmp_path_factory):
+    """A small synthetic in-service campaign from the truth simulator (Parquet), and its truth."""
+    root = tmp_path_factory.mktemp("synth") / "campaign"
+    truth = synth_in_service(root, seed=11, settings=InServiceSettings(journeys=6, line=LineSpec(length=24_000.0)),
+                             fmt="parquet")
+    return root, truth

@@ -1,0 +1,138 @@
+"""The 2D car: assembled from bodies and springs, checked against closed forms and expm."""
+import numpy as np
+import pytest
+import scipy.linalg
+
+from calibration.models.car2d import (GRAVITY, Output, build_car, damped_modes, frequencies_by_label,
+                                      state_space, static_deflection, undamped_modes)
+from calibration.models.parameters import CarParameters, ParameterError
+from calibration.models.simulate import ModalSimulator, simulate
+from calibration.models.vehicles import INTERCITY_TRAILER, infer_seed_geometry
+
+P = INTERCITY_TRAILER
+
+
+def test_bogie_pitch_is_the_closed_form_of_a_bar_on_two_springs():
+    # the secondary spring acts at the bogie centre, so bogie pitch decouples exactly
+    f = frequencies_by_label(undamped_modes(build_car(P)))["bogie_pitch"]
+    assert f == pytest.approx(np.sqrt(2 * P.k_p * P.L_b**2 / P.J_b) / (2 * np.pi), rel=1e-12)
+
+
+def test_in_phase_bounce_modes_solve_the_two_mass_closed_form():
+    # carbody on both secondaries, both bogies moving together on four primaries
+    M = np.diag([P.m_v, 2 * P.m_b])
+    K = np.array([[2 * P.k_s, -2 * P.k_s], [-2 * P.k_s, 2 * P.k_s + 4 * P.k_p]])
+    f_exact = np.sqrt(scipy.linalg.eigh(K, M, eigvals_only=True)) / (2 * np.pi)
+    modes = undamped_modes(build_car(P))
+    assert [m.frequency_hz for m in modes if m.label == "carbody_bounce"][0] == pytest.approx(f_exact[0], rel=1e-12)
+    bogie = [m.frequency_hz for m in modes if m.label == "bogie_bounce"]
+    assert min(abs(b / f_exact[1] - 1) for b in bogie) < 1e-12
+
+
+def test_carbody_pitch_closed_form_with_series_springs():
+    # antisymmetric motion: carbody pitch against bogies bouncing in antiphase
+    M = np.diag([P.J_v, 2 * P.m_b])
+    L = P.L_v
+    K = np.array([[2 * P.k_s * L**2, -2 * P.k_s * L], [-2 * P.k_s * L, 2 * P.k_s + 4 * P.k_p]])
+    f_exact = np.sqrt(scipy.linalg.eigh(K, M, eigvals_only=True)) / (2 * np.pi)
+    f = frequencies_by_label(undamped_modes(build_car(P)))["carbody_pitch"]
+    assert f == pytest.approx(f_exact[0], rel=1e-12)
+
+
+def test_static_deflection_under_gravity_matches_hand_calculation():
+    asm = build_car(P)
+    q = static_deflection(asm)
+    bogie = -(P.m_v / 2 + P.m_b) * GRAVITY / (2 * P.k_p)  # both primaries of a bogie carry it
+    carbody = bogie - P.m_v * GRAVITY / 2 / P.k_s
+    assert q[asm.dof("bogie1_z")] == pytest.approx(bogie, rel=1e-12)
+    assert q[asm.dof("carbody_z")] == pytest.approx(carbody, rel=1e-12)
+    assert q[asm.dof("carbody_pitch")] == pytest.approx(0.0, abs=1e-15)
+
+
+def test_free_wheelsets_on_a_stiff_contact_approach_the_rail_model():
+    f6 = frequencies_by_label(undamped_modes(build_car(P)))
+    f10 = frequencies_by_label(undamped_modes(build_car(P, wheelsets="free", k_contact=1e12)))
+    for label in ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch"):
+        assert f10[label] == pytest.approx(f6[label], rel=1e-4)
+    assert "axle_bounce" in f10
+
+
+def test_modes_are_labelled_by_their_shape():
+    labels = [m.label for m in undamped_modes(build_car(P))]
+    assert sorted(set(labels)) == ["bogie_bounce", "bogie_pitch", "carbody_bounce", "carbody_pitch"]
+    assert labels.count("bogie_bounce") == 2 and labels.count("bogie_pitch") == 2
+
+
+def test_damped_modes_match_the_state_matrix_eigenvalues():
+    asm = build_car(P)
+    lam = scipy.linalg.eigvals(state_space(asm, []).A)
+    wn = np.sort(np.abs(lam[lam.imag > 0])) / (2 * np.pi)
+    ours = np.sort([m.frequency_hz for m in damped_modes(asm)])
+    np.testing.assert_allclose(ours, wn, rtol=1e-10)
+
+
+def _expm_reference(ss, w, dt):
+    """Dense reference: exact first-order-hold stepping with the Van Loan matrix exponential."""
+    n, m = ss.B.shape
+    big = np.zeros((n + 2 * m, n + 2 * m))
+    big[:n, :n] = ss.A * dt
+    big[:n, n:n + m] = ss.B * dt
+    big[n:n + m, n + m:] = np.eye(m)
+    E = scipy.linalg.expm(big)
+    Phi, G1, G2 = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
+    # x[k+1] = Phi x + G1 w[k] + G2 (w[k+1] - w[k])
+    x = np.zeros(n)
+    ys = [ss.C @ x + ss.D @ w[0]]
+    for k in range(len(w) - 1):
+        x = Phi @ x + G1 @ w[k] + G2 @ (w[k + 1] - w[k])
+        ys.append(ss.C @ x + ss.D @ w[k + 1])
+    return np.array(ys)
+
+
+def test_time_response_agrees_with_dense_expm_to_1e8():
+    asm = build_car(P)
+    outputs = [Output("acc", "acceleration", "bogie1", P.L_v + 0.45), Output("rate", "pitch_rate", "bogie1"),
+               Output("z", "displacement", "carbody", 0.0), Output("v", "velocity", "carbody", -5.0)]
+    ss = state_space(asm, outputs)
+    rng = np.random.default_rng(3)
+    dt = 0.002
+    u = np.cumsum(rng.normal(0, 1e-4, (1500, 4)), axis=0)
+    w = np.hstack([u, np.gradient(u, dt, axis=0)])
+    y = simulate(ss, w, dt)
+    ref = _expm_reference(ss, w, dt)
+    rel = np.abs(y - ref).max(axis=0) / np.abs(ref).max(axis=0)  # per output, relative to its range
+    assert rel.max() < 1e-8, rel
+
+
+def test_streaming_in_chunks_equals_one_call():
+    ss = state_space(build_car(P), [Output("acc", "acceleration", "carbody", 3.0)])
+    rng = np.random.default_rng(4)
+    w = rng.normal(0, 1e-3, (1000, 8))
+    whole = simulate(ss, w, 0.002)
+    sim = ModalSimulator(ss, 0.002)
+    parts = np.vstack([sim.step_chunk(w[a:a + 137]) for a in range(0, 1000, 137)])
+    np.testing.assert_allclose(parts, whole, rtol=1e-10, atol=1e-14)
+
+
+def test_static_start_has_no_transient_on_a_constant_rail():
+    ss = state_space(build_car(P), [Output("acc", "acceleration", "bogie1", P.L_v)])
+    w = np.hstack([np.full((500, 4), 3e-3), np.zeros((500, 4))])
+    y = ModalSimulator(ss, 0.002, x0="static").step_chunk(w)
+    assert np.abs(y).max() < 1e-9
+
+
+def test_parameters_refuse_non_physical_values_and_unknown_names():
+    with pytest.raises(ParameterError, match=r"m_v .*must be > 0"):
+        P.replace(m_v=-1.0)
+    with pytest.raises(ParameterError, match="not finite"):
+        P.replace(k_s=float("nan"))
+    with pytest.raises(ParameterError, match="unknown parameter name.*k_x"):
+        CarParameters.from_mapping({"k_x": 1.0}, base=P)
+    with pytest.raises(ParameterError, match="L_b .* must be smaller"):
+        P.replace(L_b=9.0)
+
+
+def test_seed_geometry_is_inferred_from_tables_8_and_9():
+    L_v, L_b, rms = infer_seed_geometry()
+    assert (round(L_v, 2), round(L_b, 2)) == (P.L_v, P.L_b)
+    assert rms < 0.005  # Table 8 is rounded to 0.01 Hz: 1.07/1.08 alone is 0.5 %
