@@ -48,7 +48,7 @@ class FDDSettings:
     nfft_factor: int = 4  # zero padding of each Welch segment (finer peak location)
     pad: float = 10.0  # [s] filter padding taken from surrounding valid data
     normalise: bool = True
-    oversample: float = 2.5  # segments drawn per segment needed (some are rejected)
+    redraws: int = 10  # a segment with a gap or bad samples is redrawn from the same run
     seed: int = 0
 
     def __post_init__(self):
@@ -256,7 +256,10 @@ def _distance_axis(distance, speed, time, *, blend: float = 60.0) -> np.ndarray:
 
 
 def plan_segments(campaign: Campaign, n_needed: int, settings: FDDSettings) -> list[Segment]:
-    """Random segments over all runs, proportional to run length, in a seeded order."""
+    """``n_needed`` random segments over all runs, proportional to run length, seeded.
+
+    An analysis summing N FDDs uses the first N of them, so every analysis sees a random
+    draw over all runs."""
     rng = np.random.default_rng(settings.seed)
     ranges = []
     for path in campaign.run_paths:
@@ -268,8 +271,7 @@ def plan_segments(campaign: Campaign, n_needed: int, settings: FDDSettings) -> l
     if not ranges:
         return []
     lengths = np.array([b - a - settings.segment_length for _, a, b in ranges])
-    n = int(np.ceil(n_needed * settings.oversample))
-    which = rng.choice(len(ranges), size=n, p=lengths / lengths.sum())
+    which = rng.choice(len(ranges), size=n_needed, p=lengths / lengths.sum())
     out = []
     for k in which:
         run_id, a, b = ranges[k]
@@ -289,8 +291,9 @@ def channel_matrix(run: Run, names: tuple[str, ...], derived: dict, i0: int, i1:
     return np.vstack(data), ok
 
 
-def segment_csd(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.ndarray, np.ndarray]:
-    """Welch CSD matrix (n_freq, n_ch, n_ch) of the rows of x [units^2/Hz], one-sided."""
+def welch_frames(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.ndarray, np.ndarray, float]:
+    """Windowed FFT frames (n_win, n_ch, n_freq) of the rows of x, their frequencies [Hz]
+    and the one-sided density scale that turns X_i X_j^* into a CSD [units^2/Hz]."""
     nper = int(round(settings.window * fs))
     if x.shape[1] < nper:
         raise ValueError(f"segment of {x.shape[1]} samples is shorter than one Welch window ({nper})")
@@ -300,25 +303,36 @@ def segment_csd(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.nda
     starts = np.arange(0, x.shape[1] - nper + 1, hop)
     frames = np.stack([x[:, s:s + nper] for s in starts])  # (n_win, n_ch, nper)
     frames = frames - frames.mean(axis=2, keepdims=True)
-    X = np.fft.rfft(frames * win, n=nfft, axis=2)  # (n_win, n_ch, n_f)
-    scale = 2.0 / (fs * np.sum(win**2))
-    G = np.einsum("wif,wjf->fij", X, np.conj(X)) * (scale / len(starts))
-    G[0] /= 2
-    if nfft % 2 == 0:
-        G[-1] /= 2
-    return np.fft.rfftfreq(nfft, 1 / fs), G
+    X = np.fft.rfft(frames * win, n=nfft, axis=2)
+    return X, np.fft.rfftfreq(nfft, 1 / fs), 2.0 / (fs * np.sum(win**2))
+
+
+def csd_from_frames(X: np.ndarray, scale: float, rows=None) -> np.ndarray:
+    """Welch CSD matrix (n_freq, n_ch, n_ch) from :func:`welch_frames` output (optionally of some rows)."""
+    if rows is not None:
+        X = X[:, rows]
+    G = np.einsum("wif,wjf->fij", X, np.conj(X)) * (scale / X.shape[0])
+    G[0] /= 2  # DC and Nyquist are not doubled in a one-sided density
+    G[-1] /= 2
+    return G
+
+
+def segment_csd(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Welch CSD matrix (n_freq, n_ch, n_ch) of the rows of x [units^2/Hz], one-sided."""
+    X, f, scale = welch_frames(x, fs, settings)
+    return f, csd_from_frames(X, scale)
 
 
 def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, settings: FDDSettings,
                      run_rate: float):
+    """Band-passed, resampled data of channels ``names`` over a segment, or None and why."""
     i0, i1 = int(np.searchsorted(d, seg.start)), int(np.searchsorted(d, seg.end))
     if i1 - i0 < 10:
         return None, "segment outside the run's distance range"
     block = next(((a, b) for a, b in run.blocks if a <= i0 < b), None)
     if block is None or i1 > block[1]:
         return None, "segment crosses a gap in the recording"
-    dt = np.diff(run.time[block[0]:block[1]])
-    fs = 1.0 / float(np.median(dt))
+    fs = 1.0 / float(np.median(np.diff(run.time[i0:i1])))
     if abs(fs / run_rate - 1) < 1e-6:
         fs = run_rate  # the declared rate, exactly
     padn = int(settings.pad * fs)
@@ -339,63 +353,102 @@ def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, sett
     xf = bandpass(x, fs, settings.band, order=settings.order, axis=1)
     frac = Fraction(settings.fs_analysis / fs).limit_denominator(1000)
     xr = scipy.signal.resample_poly(xf, frac.numerator, frac.denominator, axis=1) if frac != 1 else xf
-    fs_a = settings.fs_analysis if frac == Fraction(settings.fs_analysis / fs) else fs * frac.numerator / frac.denominator
+    exact = frac == Fraction(settings.fs_analysis / fs)
+    fs_a = settings.fs_analysis if exact else fs * frac.numerator / frac.denominator
     a = int(round((i0 - p0 - lo) * fs_a / fs))
     b = int(round((i1 - p0 - lo) * fs_a / fs))
     speed = float((seg.end - seg.start) / (run.time[i1 - 1] - run.time[i0]))
+    if b - a < int(round(settings.window * fs_a)):
+        return None, "segment shorter than one Welch window"
     return (xr[:, a:b], fs_a, speed), ""
+
+
+class _Sum:
+    """Running sums of one analysis: singular values and CSD matrices over segments."""
+
+    def __init__(self, analysis: Analysis):
+        self.analysis = analysis
+        self.sv = None
+        self.G = None
+        self.speeds: list[float] = []
+
+    def add(self, G: np.ndarray, speed: float) -> None:
+        sv = np.linalg.svd(G, compute_uv=False, hermitian=True).T  # (n_ch, n_f)
+        self.sv = sv if self.sv is None else self.sv + sv
+        self.G = G.copy() if self.G is None else self.G + G
+        self.speeds.append(speed)
+
+
+class SegmentalFDDAccumulator:
+    """The streaming core of :func:`segmental_fdd`: feed runs in any order, one at a time."""
+
+    def __init__(self, meta: CampaignMeta, analyses: tuple[Analysis, ...], plan: list[Segment],
+                 settings: FDDSettings):
+        self.meta, self.analyses, self.settings = meta, analyses, settings
+        self.derived = derived_channels(meta)
+        self.union = tuple(dict.fromkeys(c for a in analyses for c in a.channels))
+        self.rows = {a.name: [self.union.index(c) for c in a.channels] for a in analyses}
+        self.by_run: dict[str, list[tuple[int, Segment]]] = {}
+        for k, seg in enumerate(plan):
+            self.by_run.setdefault(seg.run_id, []).append((k, seg))
+        self.sums = {a.name: _Sum(a) for a in analyses}
+        self.outcomes: dict[int, SegmentOutcome] = {}
+        self.freq = None
+        self.rng = np.random.default_rng(settings.seed + 1)
+
+    def wants(self, run_id: str) -> bool:
+        return run_id in self.by_run
+
+    def add_run(self, run: Run) -> int:
+        """Process the planned segments of this run; returns how many were used."""
+        st = self.settings
+        d = _distance_axis(run.distance, run.speed, run.time)
+        used = 0
+        for k, seg in self.by_run.get(run.run_id, []):
+            prep, why = _prepare_segment(run, d, seg, self.union, self.derived, st, self.meta.sampling_rate)
+            tries = 0
+            while prep is None and tries < st.redraws and d[-1] - d[0] > st.segment_length:
+                tries += 1  # a gap or bad samples: draw another segment from the same run
+                start = float(self.rng.uniform(d[0], d[-1] - st.segment_length))
+                seg = Segment(run.run_id, start, start + st.segment_length)
+                prep, why = _prepare_segment(run, d, seg, self.union, self.derived, st, self.meta.sampling_rate)
+            if prep is None:
+                self.outcomes[k] = SegmentOutcome(seg, False, why)
+                continue
+            x, fs_a, speed = prep
+            X, f, scale = welch_frames(x, fs_a, st)
+            band = (f >= st.band[0]) & (f <= st.band[1])
+            self.freq = f[band]
+            for a in self.analyses:
+                if k >= a.n_fdds:
+                    continue
+                G = csd_from_frames(X[:, :, band], scale, self.rows[a.name])
+                if st.normalise:
+                    G = G / (np.real(np.trace(G, axis1=1, axis2=2)).sum() * (f[1] - f[0]))
+                self.sums[a.name].add(G, speed)
+            self.outcomes[k] = SegmentOutcome(seg, True, f"redrawn {tries} times" if tries else "", speed)
+            used += 1
+        return used
+
+    def result(self) -> SegmentalFDD:
+        results = {}
+        for a in self.analyses:
+            s = self.sums[a.name]
+            if s.sv is None:
+                continue
+            results[a.name] = FDDResult(a, self.freq, s.sv, s.G, len(s.speeds), np.array(s.speeds))
+        return SegmentalFDD(self.settings, results, tuple(self.outcomes[k] for k in sorted(self.outcomes)))
 
 
 def segmental_fdd(campaign: Campaign, analyses: tuple[Analysis, ...] | None = None, *,
                   settings: FDDSettings = FDDSettings(), progress=None) -> SegmentalFDD:
     """Segmental FDD of a campaign, one run in memory at a time."""
-    meta = campaign.meta
-    analyses = plan_analyses(meta) if analyses is None else analyses
-    derived = derived_channels(meta)
-    n_needed = max(a.n_fdds for a in analyses)
-    plan = plan_segments(campaign, n_needed, settings)
-    order = {id(s): k for k, s in enumerate(plan)}
-    by_run: dict[str, list[Segment]] = {}
-    for s in plan:
-        by_run.setdefault(s.run_id, []).append(s)
-    # per analysis, per plan index: CSD of that segment (kept only until summed)
-    per_seg: dict[str, dict[int, tuple]] = {a.name: {} for a in analyses}
-    outcomes: dict[int, SegmentOutcome] = {}
-    freq = None
+    analyses = plan_analyses(campaign.meta) if analyses is None else analyses
+    plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings)
+    acc = SegmentalFDDAccumulator(campaign.meta, analyses, plan, settings)
     for path in campaign.run_paths:
-        segs = by_run.get(path.stem)
-        if not segs:
-            continue
-        run = campaign.read_run(path.stem)
-        d = _distance_axis(run.distance, run.speed, run.time)
-        if progress:
-            progress(f"FDD: {run.run_id}, {len(segs)} segments")
-        for seg in segs:
-            k = order[id(seg)]
-            used_any, reason, speed = False, "", float("nan")
-            for a in analyses:
-                prep, why = _prepare_segment(run, d, seg, a.channels, derived, settings, meta.sampling_rate)
-                if prep is None:
-                    reason = why
-                    continue
-                x, fs_a, speed = prep
-                f, G = segment_csd(x, fs_a, settings)
-                band = (f >= settings.band[0]) & (f <= settings.band[1])
-                if settings.normalise:
-                    power = np.real(np.trace(G[band], axis1=1, axis2=2)).sum() * (f[1] - f[0])
-                    G = G / power
-                per_seg[a.name][k] = (G[band], speed)
-                freq = f[band]
-                used_any = True
-            outcomes[k] = SegmentOutcome(seg, used_any, reason if not used_any else "", speed)
-        del run
-    results = {}
-    for a in analyses:
-        keys = sorted(per_seg[a.name])[: a.n_fdds]
-        if not keys:
-            continue
-        Gs = np.stack([per_seg[a.name][k][0] for k in keys])  # (n_seg, n_f, n_ch, n_ch)
-        sv = np.linalg.svd(Gs, compute_uv=False, hermitian=True).sum(axis=0).T  # (n_ch, n_f)
-        speeds = np.array([per_seg[a.name][k][1] for k in keys])
-        results[a.name] = FDDResult(a, freq, sv, Gs.sum(axis=0), len(keys), speeds)
-    return SegmentalFDD(settings, results, tuple(outcomes[k] for k in sorted(outcomes)))
+        if acc.wants(path.stem):
+            n = acc.add_run(campaign.read_run(path.stem))
+            if progress:
+                progress(f"FDD: {path.stem}, {n} segments")
+    return acc.result()

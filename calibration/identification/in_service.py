@@ -33,8 +33,9 @@ from ..data.campaign import Campaign
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters
 from ..models.vehicles import INTERCITY_TRAILER
-from ..signals.spectral_lines import LineSettings, SpectralLine, classify_lines
-from .fdd import Analysis, FDDSettings, SegmentalFDD, derived_channels, plan_analyses, segmental_fdd
+from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
+from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
+                  plan_segments)
 from .frf import Pole, fit_poles, h1
 
 RIGID_LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
@@ -222,10 +223,19 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     if have_io:
         analyses.append(Analysis(IO_ANALYSIS, io_channels + (gyro[0],), settings.io_segments, "input_output",
                                  "bogie1"))
-    fdd = segmental_fdd(campaign, tuple(analyses), settings=settings.fdd, progress=progress)
-    if progress:
-        progress("spectral lines: steady-speed windows")
-    lines = classify_lines(campaign, settings=settings.lines)
+    # one streaming pass: each run is read once for the FDD segments and the line windows
+    plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings.fdd)
+    acc = SegmentalFDDAccumulator(meta, tuple(analyses), plan, settings.fdd)
+    collector = LineWindowCollector(tuple(s.name for s in meta.sensors), meta.sampling_rate, settings.lines)
+    for path in campaign.run_paths:
+        run = campaign.read_run(path.stem)
+        n = acc.add_run(run)
+        collector.add_run(run)
+        if progress:
+            progress(f"{path.stem}: {n} segments, {len(collector.windows)} steady-speed windows so far")
+        del run
+    fdd = acc.result()
+    lines = collector.classify()
 
     peaks = {}
     for name, r in fdd.results.items():
@@ -248,13 +258,19 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
         Hp_acc = Hp[:, 0, 0] * (1j * 2 * np.pi * f)  # pitch rate -> pitch acceleration
         frfs["own_rail"] = FRF("own_rail", f, H[:, 0, 0], coh[:, 0],
                                "bogie-1 centre acceleration / rail acceleration under bogie 1")
-        frfs["trailing_rail"] = FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
-                                    "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)")
         frfs["pitch"] = FRF("pitch", f, Hp_acc, cohp[:, 0],
                             "bogie-1 pitch acceleration / rail pitch acceleration under bogie 1")
-        w = lambda c: (c >= settings.min_coherence).astype(float)  # noqa: E731
-        cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles,
-                                  weights=w(coh[:, 0])), 2)
+        # Bins are weighted by the inverse standard deviation of the two-input estimate,
+        # which grows as 1 / sqrt(1 - gamma_ab^2): below ~0.6 Hz the delay 2 L_v / v turns the
+        # phase too little across speeds to tell the two rails apart (measured on seed 1:
+        # carbody bounce -1.96 % unweighted, -0.62 % weighted, noise-free data).
+        G = r.csd
+        separability = np.clip(1 - np.abs(G[:, 0, 1]) ** 2 / np.real(G[:, 0, 0] * G[:, 1, 1]), 0.0, 1.0)
+        gate = lambda c: (c >= settings.min_coherence).astype(float)  # noqa: E731
+        w2 = gate(coh[:, 0]) * np.sqrt(separability)
+        frfs["trailing_rail"] = FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
+                                    "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)")
+        cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles, weights=w2), 2)
         signs = {p: _static_sign(p, f, H[:, 0, 1]) for p in cb}
         bounce = [p for p in cb if signs[p] > 0]
         pitch = [p for p in cb if signs[p] < 0]
@@ -264,10 +280,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
             cb_labels = dict(zip(cb, order))
         fitted = {lbl: (p, "trailing_rail") for p, lbl in cb_labels.items()}
-        bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles,
-                                  weights=w(coh[:, 0])), 1)
+        bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles, weights=w2), 1)
         bp = _strongest(fit_poles(f, Hp_acc, settings.bogie_band, 1 + settings.extra_poles,
-                                  weights=w(cohp[:, 0])), 1)
+                                  weights=gate(cohp[:, 0])), 1)
         if bb:
             fitted["bogie_bounce"] = (bb[0], "own_rail")
         if bp:

@@ -87,50 +87,45 @@ def _impact_autocorrelation(x: np.ndarray, fs: float, speed: float, settings: Li
     return np.stack([np.interp(lags, np.arange(n) * speed / fs, row, right=np.nan) for row in ac])
 
 
-def _steady_windows(campaign: Campaign, channels, settings: LineSettings):
-    rng = np.random.default_rng(settings.seed)
-    fs = campaign.meta.sampling_rate
-    n = int(settings.window * fs)
-    nper = int(settings.nperseg * fs)
-    f = None
-    out = []
-    for run in campaign.iter_runs():
+class LineWindowCollector:
+    """Collects steady-speed windows run by run (streaming); :meth:`classify` does the rest."""
+
+    def __init__(self, channels: tuple[str, ...], fs: float, settings: LineSettings = LineSettings()):
+        self.channels, self.fs, self.settings = channels, fs, settings
+        self.rng = np.random.default_rng(settings.seed)
+        self.windows: list[_Window] = []
+        self.f = None
+
+    def add_run(self, run) -> None:
+        st, fs = self.settings, self.fs
+        n = int(st.window * fs)
+        nper = int(st.nperseg * fs)
         if run.speed is not None:
             speed = run.speed
         elif run.distance is not None:
             speed = np.gradient(run.distance, run.time)
         else:
-            continue
-        starts = []
-        for a, b in run.blocks:
-            starts += list(range(a, b - n, n))
-        rng.shuffle(starts)
+            return
+        starts = [s0 for a, b in run.blocks for s0 in range(a, b - n, n)]
+        self.rng.shuffle(starts)
         taken = 0
         for s0 in starts:
-            if taken >= settings.windows_per_run:
+            if taken >= st.windows_per_run:
                 break
             v = speed[s0:s0 + n]
-            if not np.all(np.isfinite(v)) or v.mean() <= 0:
+            if not np.all(np.isfinite(v)) or v.mean() <= 0 or np.ptp(v) / v.mean() > st.speed_tolerance:
                 continue
-            if np.ptp(v) / v.mean() > settings.speed_tolerance:
+            if not all(run.valid[ch][s0:s0 + n].all() for ch in self.channels):
                 continue
-            data = []
-            ok = True
-            for ch in channels:
-                x = run.channels[ch][s0:s0 + n]
-                if not run.valid[ch][s0:s0 + n].all():
-                    ok = False
-                    break
-                data.append(x)
-            if not ok:
-                continue
-            X = np.vstack(data)
-            f, P = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
+            X = np.vstack([run.channels[ch][s0:s0 + n] for ch in self.channels])
+            self.f, P = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
             P = np.log10(np.maximum(P, 1e-300))
             P -= np.median(P, axis=1, keepdims=True)
-            out.append(_Window(float(v.mean()), P, _impact_autocorrelation(X, fs, float(v.mean()), settings)))
+            self.windows.append(_Window(float(v.mean()), P, _impact_autocorrelation(X, fs, float(v.mean()), st)))
             taken += 1
-    return f, out
+
+    def classify(self) -> list[SpectralLine]:
+        return _classify(self.f, self.windows, self.channels, self.settings)
 
 
 def _periodic_impacts(windows, channels, speeds, settings: LineSettings) -> list[SpectralLine]:
@@ -188,7 +183,13 @@ def classify_lines(campaign: Campaign, channels: tuple[str, ...] | None = None, 
                    settings: LineSettings = LineSettings()) -> list[SpectralLine]:
     """Classify the spectral lines of a campaign's channels (see module docstring)."""
     channels = tuple(s.name for s in campaign.meta.sensors) if channels is None else channels
-    f, windows = _steady_windows(campaign, channels, settings)
+    collector = LineWindowCollector(channels, campaign.meta.sampling_rate, settings)
+    for run in campaign.iter_runs():
+        collector.add_run(run)
+    return collector.classify()
+
+
+def _classify(f, windows, channels, settings: LineSettings) -> list[SpectralLine]:
     if len(windows) < 3:
         return []
     speeds = np.array([w.speed for w in windows])
