@@ -46,7 +46,9 @@ class FDDSettings:
     window: float = 20.48  # [s] Welch segment length
     overlap: float = 0.5
     nfft_factor: int = 4  # zero padding of each Welch segment (finer peak location)
-    pad: float = 10.0  # [s] filter padding taken from surrounding valid data
+    # [s] filter padding taken from surrounding valid data: the 0.25 Hz high-pass section of
+    # the seed's band-pass rings with a 2.4 s e-fold time after an edge; 20 s leave e^-8
+    pad: float = 20.0
     normalise: bool = True
     redraws: int = 10  # a segment with a gap or bad samples is redrawn from the same run
     seed: int = 0

@@ -1,0 +1,87 @@
+"""Identification of a synthetic in-service campaign against the truth that generated it."""
+import json
+
+import numpy as np
+import pytest
+
+from calibration.cli import main
+from calibration.data.campaign import open_campaign
+from calibration.identification.fdd import RailInput, derived_channels
+from calibration.identification.in_service import RIGID_LABELS, identify_in_service
+
+
+@pytest.fixture(scope="module")
+def identified(synthetic_campaign):
+    root, truth = synthetic_campaign
+    return identify_in_service(open_campaign(root)), truth
+
+
+def test_rigid_body_modes_are_found_within_tolerance(identified):
+    result, truth = identified
+    limits = {"carbody_bounce": 0.03, "carbody_pitch": 0.03, "bogie_bounce": 0.02, "bogie_pitch": 0.02}
+    for label in RIGID_LABELS:
+        m = result.mode(label)
+        assert m.frequency_hz == pytest.approx(truth["frequencies_hz"][label], rel=limits[label]), label
+        assert m.damping_ratio == pytest.approx(truth["damping_ratios"][label], abs=0.04), label
+
+
+def test_sleepers_are_speed_dependent_at_0_7_m_and_the_gyro_tone_is_not_the_vehicle(identified):
+    result, _ = identified
+    sleepers = [ln for ln in result.spectral_lines if ln.kind == "speed_dependent"
+                and ln.wavelength_m is not None and abs(ln.wavelength_m - 0.70) <= 0.02]
+    assert sleepers and sleepers[0].exponent == pytest.approx(1.0, abs=0.05)
+    tone = [p for p in result.rejected_peaks if abs(p.frequency_hz - 77.64) < 0.2]
+    assert tone and "non-vehicle" in tone[0].reason and "bogie1_gyro_pitch only" in tone[0].reason
+    welds = [ln for ln in result.spectral_lines if ln.wavelength_m and abs(ln.wavelength_m - 39.0) < 0.5]
+    assert welds, "periodic weld impacts every 39 m"
+
+
+def test_segments_are_2_km_draws_from_many_journeys(identified):
+    result, _ = identified
+    used = [o for o in result.fdd.outcomes if o.used]
+    assert len({o.segment.run_id for o in used}) == 6
+    assert all(o.segment.end - o.segment.start == pytest.approx(2000.0) for o in used)
+    assert result.fdd.results["bogie1_pitch"].n_used == 50  # seed Table 3
+    assert result.fdd.results["axle1_bounce"].n_used == 20
+
+
+def test_trailing_rail_is_the_leading_rail_seen_2_L_v_later(synthetic_campaign):
+    root, _ = synthetic_campaign
+    campaign = open_campaign(root)
+    run = campaign.read_run(campaign.run_ids[0])
+    d = run.distance.astype(float)
+    ch = derived_channels(campaign.meta)
+    lead: RailInput = ch["rail_bounce_bogie1"]
+    trail: RailInput = ch["rail_bounce_bogie2_from_bogie1"]
+    assert trail.delay == pytest.approx(2 * campaign.meta.geometry["bogie_semi_spacing"])
+    a, b = run.blocks[0]
+    i0, i1 = a + 5000, a + 15000
+    x_lead, ok_lead = lead.evaluate(run, a, b, d)
+    x_trail, ok = trail.evaluate(run, i0, i1, d)
+    # the delayed value at distance s equals the leading value when the bogie was at s - 2 L_v
+    target = d[i0:i1] - trail.delay
+    expected = np.interp(target, d[a:b], x_lead)
+    np.testing.assert_allclose(x_trail[ok], expected[ok], rtol=1e-9, atol=1e-9)
+
+
+def test_identify_command_writes_modes_and_rejected_peaks(synthetic_campaign, tmp_path, capsys):
+    root, _ = synthetic_campaign
+    out = tmp_path / "ident.json"
+    assert main(["identify", str(root), "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.read_text())
+    assert {m["label"] for m in data["modes"]} == set(RIGID_LABELS)
+    assert all({"label", "frequency_hz"} <= set(m) for m in data["modes"])
+    assert all({"frequency_hz", "reason"} <= set(p) for p in data["rejected_peaks"])
+    assert (tmp_path / "ident.png").stat().st_size > 10_000
+    assert "identified 4 modes" in capsys.readouterr().out
+
+
+def test_modes_command_reports_labelled_frequencies(tmp_path, capsys):
+    out = tmp_path / "modes.json"
+    assert main(["modes", "--model", "car2d", "--param", "J_b=10024", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    pitch = [m for m in data["modes"] if m["label"] == "bogie_pitch"]
+    p = data["parameters"]
+    assert pitch[0]["frequency_hz"] == pytest.approx(np.sqrt(2 * p["k_p"] * p["L_b"] ** 2 / 10024) / (2 * np.pi))
+    assert all("damping_ratio" in m for m in data["modes"])
+    capsys.readouterr()
