@@ -56,7 +56,7 @@ def cmd_synth_in_service(args) -> int:
 def cmd_identify(args) -> int:
     from .identification.fdd import FDDSettings
     from .identification.in_service import IdentifySettings, identify_in_service
-    from .identification.plots import plot_identification
+    from .identification.plots import plot_identification, plot_spectra
 
     campaign = open_campaign(args.campaign)
     if campaign.meta.kind != "in_service":
@@ -69,11 +69,13 @@ def cmd_identify(args) -> int:
     truth_path = Path(f"{Path(args.campaign).resolve()}.truth.json")
     truth = json.loads(truth_path.read_text())["frequencies_hz"] if truth_path.is_file() else None
     plot_identification(result, png, truth=truth)
+    spectra = plot_spectra(result, png.with_name(png.stem + "_spectra.png"))
     out["plot"] = str(png)
+    out["plot_spectra"] = None if spectra is None else str(spectra)
     write_json_atomic(args.out, out)
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
     print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected_peaks)} peaks rejected; "
-          f"wrote {args.out} and {png}")
+          f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote {args.out} and {png}")
     return EXIT_OK
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .data.campaign import open_campaign, write_json_atomic
 from .identification.in_service import RIGID_LABELS, identify_in_service
-from .identification.plots import plot_identification
+from .identification.plots import plot_identification, plot_spectra
 from .truth.in_service import InServiceSettings, synth_in_service
 from .truth.track import LineSpec
 
@@ -39,6 +39,8 @@ def run_demo(out: Path, *, progress=None) -> Path:
     ident = result.to_json()
     png = plot_identification(result, out / "identification.png", truth=truth["frequencies_hz"])
     ident["plot"] = str(png)
+    spectra = plot_spectra(result, out / "spectra.png")
+    ident["plot_spectra"] = None if spectra is None else str(spectra)
     write_json_atomic(out / "identification.json", ident)
     say("3/3 writing the report")
     report = out / "report.md"
@@ -84,7 +86,10 @@ def _report(truth: dict, result, png_name: str) -> str:
         "|---|---|---|---|---|",
         *lines,
         "",
-        f"{len(result.rejected_peaks)} peaks rejected, each with its reason, in `identification.json`.",
+        "![spectra](spectra.png)",
+        "",
+        f"{len(result.rejected_peaks)} peaks rejected, each with its reason, in `identification.json`; "
+        f"{sum(len(r['gaps']) for r in result.runs)} logger gaps reported there too (never interpolated).",
         "",
         "Not yet in this pipeline: calibration, validation, diagnosis, FMU export, exudyn cross-check.",
         "",

@@ -37,6 +37,17 @@ def identify_rejects(campaign, tmp_path, capsys, *patterns):
     return err
 
 
+def set_cell(root, data_row, column, value):
+    """Replace one cell of run_a.csv; data_row counts from 1 after the header (file line data_row + 1)."""
+    def edit(lines):
+        lines = list(lines)
+        cells = lines[data_row].split(",")
+        cells[column] = value
+        lines[data_row] = ",".join(cells)
+        return lines
+    return rewrite_run(root, edit)
+
+
 def rewrite_run(root, edit):
     path = root / "runs" / "run_a.csv"
     lines = path.read_text().splitlines()
@@ -79,6 +90,11 @@ def test_gaps_are_reported_and_split_the_run_never_interpolated(tiny_campaign):
     assert run.gaps[0].after_time == pytest.approx(1.49) and run.gaps[0].before_time == pytest.approx(1.80)
     assert run.blocks == ((0, 150), (150, 370))
     assert len(run) == 370
+
+
+def test_missing_time_names_the_line(tiny_campaign, tmp_path, capsys):
+    set_cell(tiny_campaign, 5, 0, "nan")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 6", r"column 'time'", "time is missing")
 
 
 def test_missing_and_clipped_samples_are_marked_invalid(tiny_campaign):
@@ -149,13 +165,7 @@ def test_sensor_declared_twice_is_inconsistent(tiny_campaign, tmp_path, capsys):
 
 
 def test_non_numeric_cell_names_line_and_column(tiny_campaign, tmp_path, capsys):
-    def spoil(lines):
-        lines = list(lines)
-        cells = lines[11].split(",")
-        cells[3] = "abc"
-        lines[11] = ",".join(cells)
-        return lines
-    rewrite_run(tiny_campaign, spoil)
+    set_cell(tiny_campaign, 11, 3, "abc")
     identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", r"line 12", r"column 'bogie1_acc_z'",
                      "'abc' is not a number")
 
@@ -182,13 +192,7 @@ def test_inverted_prior_bounds_are_infeasible(tiny_campaign, tmp_path, capsys):
 
 
 def test_decreasing_distance_names_the_line(tiny_campaign, tmp_path, capsys):
-    def spoil(lines):
-        lines = list(lines)
-        cells = lines[31].split(",")
-        cells[1] = "0.5"
-        lines[31] = ",".join(cells)
-        return lines
-    rewrite_run(tiny_campaign, spoil)
+    set_cell(tiny_campaign, 31, 1, "0.5")
     identify_rejects(tiny_campaign, tmp_path, capsys, r"line 32", r"column 'distance'", "decreases")
 
 

@@ -103,6 +103,8 @@ class InServiceIdentification:
     fdd_peaks: dict = field(repr=False)
     frfs: dict = field(repr=False)
     prior_frequencies: dict = field(default_factory=dict)
+    runs: tuple = ()  # what was read: per run samples, duration, gaps, invalid samples
+    psd: object = field(default=None, repr=False)  # ChannelPSDs by speed class
 
     def mode(self, label: str) -> IdentifiedMode:
         for m in self.modes:
@@ -129,6 +131,8 @@ class InServiceIdentification:
                          "rejected": [{"run": o.segment.run_id, "start_m": o.segment.start, "reason": o.reason}
                                       for o in segs if not o.used]},
             "prior_frequencies_hz": self.prior_frequencies,
+            "data": {"runs": list(self.runs), "gaps": sum(len(r["gaps"]) for r in self.runs)},
+            "psd_by_speed": None if self.psd is None else self.psd.to_json(),
             "settings": {"segment_length_m": self.fdd.settings.segment_length,
                          "band_hz": list(self.fdd.settings.band), "filter_order": self.fdd.settings.order,
                          "seed": self.fdd.settings.seed},
@@ -227,10 +231,12 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings.fdd)
     acc = SegmentalFDDAccumulator(meta, tuple(analyses), plan, settings.fdd)
     collector = LineWindowCollector(tuple(s.name for s in meta.sensors), meta.sampling_rate, settings.lines)
+    runs = []
     for path in campaign.run_paths:
         run = campaign.read_run(path.stem)
         n = acc.add_run(run)
         collector.add_run(run)
+        runs.append(_run_report(run))
         if progress:
             progress(f"{path.stem}: {n} segments, {len(collector.windows)} steady-speed windows so far")
         del run
@@ -313,7 +319,21 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
 
     rejected = _rejected(peaks, fdd, modes, lines)
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
-                                   frfs, {k: float(v) for k, v in prior_f.items()})
+                                   frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs),
+                                   collector.psd_by_speed())
+
+
+def _run_report(run) -> dict:
+    """What the reader found in one run: size, gaps (never interpolated), invalid samples."""
+    speed = run.speed if run.speed is not None else None
+    return {
+        "run": run.run_id, "samples": len(run), "duration_s": float(run.time[-1] - run.time[0]),
+        "distance_m": None if run.distance is None else [float(run.distance[0]), float(run.distance[-1])],
+        "speed_m_s": None if speed is None else [float(np.nanmin(speed)), float(np.nanmax(speed))],
+        "gaps": [{"after_time_s": g.after_time, "before_time_s": g.before_time, "duration_s": g.duration}
+                 for g in run.gaps],
+        "invalid_samples": {ch: int((~ok).sum()) for ch, ok in run.valid.items() if (~ok).any()},
+    }
 
 
 def _rejected(peaks, fdd: SegmentalFDD, modes, lines) -> list[RejectedPeak]:

@@ -57,3 +57,36 @@ def plot_identification(result: InServiceIdentification, path, *, truth: dict | 
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_spectra(result: InServiceIdentification, path) -> Path | None:
+    """PSD of every channel for slow, middle and fast steady-speed windows (seed Figure 7),
+    with the classified spectral lines: tones fixed, speed-dependent lines at each class's
+    mean speed."""
+    psd = result.psd
+    if psd is None:
+        return None
+    names = list(psd.psd)
+    fig, axes = plt.subplots(len(names), 1, figsize=(10, 2.2 * len(names)), sharex=True, squeeze=False)
+    colours = ("tab:blue", "tab:orange", "tab:red")
+    for ax, name in zip(axes[:, 0], names):
+        for k, (lo, hi) in enumerate(psd.speed_classes):
+            ax.semilogy(psd.frequency, psd.psd[name][k], lw=0.8, color=colours[k % 3],
+                        label=f"{lo:.0f}-{hi:.0f} m/s")
+            v = 0.5 * (lo + hi)
+            for ln in result.spectral_lines:
+                if ln.kind == "speed_dependent" and ln.wavelength_m and name in ln.channels and ln.wavelength_m < 5:
+                    ax.axvline(v / ln.wavelength_m, color=colours[k % 3], ls=":", lw=0.8)
+        for ln in result.spectral_lines:
+            if ln.kind == "speed_independent" and name in ln.channels:
+                ax.axvline(ln.frequency_hz, color="k", ls="--", lw=0.8)
+        ax.set_ylabel(name, fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
+    axes[0, 0].set_title("PSD per channel [SI^2/Hz] by speed class; dotted: speed-dependent lines, dashed: fixed tones")
+    axes[-1, 0].set_xlabel("frequency [Hz]")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

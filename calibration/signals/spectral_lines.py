@@ -67,7 +67,8 @@ class SpectralLine:
 @dataclass(frozen=True)
 class _Window:
     speed: float
-    psd: np.ndarray  # (n_ch, n_f) log10
+    psd: np.ndarray  # (n_ch, n_f) log10, median removed
+    psd_si: np.ndarray  # (n_ch, n_f) [SI unit^2 / Hz]
     impacts: np.ndarray  # (n_ch, n_lag) envelope autocorrelation over distance lag
 
 
@@ -118,14 +119,41 @@ class LineWindowCollector:
             if not all(run.valid[ch][s0:s0 + n].all() for ch in self.channels):
                 continue
             X = np.vstack([run.channels[ch][s0:s0 + n] for ch in self.channels])
-            self.f, P = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
-            P = np.log10(np.maximum(P, 1e-300))
+            self.f, P_si = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
+            P = np.log10(np.maximum(P_si, 1e-300))
             P -= np.median(P, axis=1, keepdims=True)
-            self.windows.append(_Window(float(v.mean()), P, _impact_autocorrelation(X, fs, float(v.mean()), st)))
+            self.windows.append(_Window(float(v.mean()), P, P_si,
+                                        _impact_autocorrelation(X, fs, float(v.mean()), st)))
             taken += 1
 
     def classify(self) -> list[SpectralLine]:
         return _classify(self.f, self.windows, self.channels, self.settings)
+
+    def psd_by_speed(self, n_classes: int = 3) -> "ChannelPSDs | None":
+        """Mean PSD of each channel over the windows of each speed class (equal-count classes)."""
+        if len(self.windows) < n_classes:
+            return None
+        speeds = np.array([w.speed for w in self.windows])
+        order = np.argsort(speeds)
+        classes = np.array_split(order, n_classes)
+        P = np.stack([w.psd_si for w in self.windows])
+        return ChannelPSDs(self.f, tuple((float(speeds[c].min()), float(speeds[c].max())) for c in classes),
+                           {ch: np.stack([P[c, i].mean(axis=0) for c in classes]) for i, ch in enumerate(self.channels)})
+
+
+@dataclass(frozen=True)
+class ChannelPSDs:
+    """Welch PSDs [SI unit^2/Hz] per channel, averaged over steady-speed windows per speed class."""
+
+    frequency: np.ndarray  # [Hz]
+    speed_classes: tuple[tuple[float, float], ...]  # [m/s]
+    psd: dict  # channel -> (n_classes, n_f)
+
+    def to_json(self, n_points: int = 200) -> dict:
+        f = self.frequency
+        grid = np.unique(np.round(np.geomspace(max(f[1], 0.5), f[-1], n_points) / (f[1] - f[0])).astype(int))
+        return {"frequency_hz": f[grid].tolist(), "speed_classes_m_s": [list(c) for c in self.speed_classes],
+                "psd_si_per_hz": {ch: p[:, grid].tolist() for ch, p in self.psd.items()}}
 
 
 def _periodic_impacts(windows, channels, speeds, settings: LineSettings) -> list[SpectralLine]:
