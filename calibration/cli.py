@@ -97,11 +97,11 @@ def _parse_params(items) -> dict[str, float]:
 
 def cmd_modes(args) -> int:
     from .models.car2d import build_car, damped_modes, undamped_modes
-    from .models.vehicles import INTERCITY_TRAILER
+    from .models.vehicles import VEHICLES
 
     if args.model != "car2d":
         raise InputError(f"model {args.model!r} is not available yet; have: car2d", key="--model")
-    p = INTERCITY_TRAILER.replace(**_parse_params(args.param))
+    p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
     asm = build_car(p)
     und = undamped_modes(asm)
     dmp = {m.label: m for m in damped_modes(asm)}
@@ -110,7 +110,8 @@ def cmd_modes(args) -> int:
               "damped_frequency_hz": dmp[m.label].damped_frequency_hz if m.label in dmp else None}
              for m in und]
     if args.out:
-        write_json_atomic(args.out, {"model": "car2d", "parameters": p.as_dict(), "modes": modes})
+        write_json_atomic(args.out, {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(),
+                                     "modes": modes})
     print("; ".join(f"{m['label']} {m['frequency_hz']:.3f} Hz" for m in modes))
     return EXIT_OK
 
@@ -152,6 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("modes", help="eigen-analysis of a model")
     s.add_argument("--model", default="car2d")
+    s.add_argument("--vehicle", choices=("intercity", "manchester"), default="intercity",
+                   help="base parameter set: the seed's intercity trailer or the Manchester benchmark coach")
     s.add_argument("--param", action="append", metavar="NAME=VALUE")
     s.add_argument("--out", default=None)
     s.set_defaults(func=cmd_modes)

@@ -136,3 +136,18 @@ def test_seed_geometry_is_inferred_from_tables_8_and_9():
     L_v, L_b, rms = infer_seed_geometry()
     assert (round(L_v, 2), round(L_b, 2)) == (P.L_v, P.L_b)
     assert rms < 0.005  # Table 8 is rounded to 0.01 Hz: 1.07/1.08 alone is 0.5 %
+
+
+def test_manchester_benchmark_reproduces_the_seed_table_2_row(tmp_path, capsys):
+    import json
+
+    from calibration.cli import main
+    from calibration.models.vehicles import SEED_TABLE2_MANCHESTER
+
+    out = tmp_path / "modes.json"
+    assert main(["modes", "--model", "car2d", "--vehicle", "manchester", "--out", str(out)]) == 0
+    capsys.readouterr()
+    modes = json.loads(out.read_text())["modes"]
+    for label, published in SEED_TABLE2_MANCHESTER.items():
+        f = np.mean([m["frequency_hz"] for m in modes if m["label"] == label])
+        assert f == pytest.approx(published, rel=0.02), label

@@ -325,7 +325,7 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
 
 def _run_report(run) -> dict:
     """What the reader found in one run: size, gaps (never interpolated), invalid samples."""
-    speed = run.speed if run.speed is not None else None
+    speed = run.speed
     return {
         "run": run.run_id, "samples": len(run), "duration_s": float(run.time[-1] - run.time[0]),
         "distance_m": None if run.distance is None else [float(run.distance[0]), float(run.distance[-1])],

@@ -23,7 +23,13 @@ INTERCITY_TRAILER is the in-service seed's Hyundai-Rotem 22000 trailer car
   c_s = 20 000 N s/m per bogie (damping ratios 0.07 carbody bounce, 0.14 carbody pitch,
   0.16 bogie bounce, 0.10 bogie pitch).
 
-MANCHESTER_BENCHMARK: Iwnicki (1998) coach, for issue 3 (not needed here).
+MANCHESTER_BENCHMARK is the coach of Iwnicki, "Manchester benchmarks for rail vehicle
+simulation", Vehicle System Dynamics 30 (1998) 295-313, as reduced to 2D in Cantero's
+TTB-2D (SoftwareX 20, 2022, file TrainProp_Manchester_BenchMark.m): per-corner primary
+1.2e6 N/m and 4 kN s/m, per-corner secondary 430 kN/m and 20 kN s/m, doubled for the
+2D model's per-wheelset and per-bogie elements; bogie centres 2 x 9.5 m, wheelbase
+2 x 1.28 m. The in-service seed's Table 2 lists its 2D frequencies as 1.07, 1.28, 7.47
+and 11.68 Hz.
 """
 from __future__ import annotations
 
@@ -93,3 +99,13 @@ INTERCITY_TRAILER = CarParameters(
     k_p=2840000.0, c_p=12000.0, k_s=720000.0, c_s=20000.0,
     L_v=8.03, L_b=1.15,  # infer_seed_geometry(): 8.031, 1.150 (rms 0.27 % over Table 8)
 )
+
+
+MANCHESTER_BENCHMARK = CarParameters(
+    m_v=32000.0, J_v=1.97e6, m_b=2615.0, J_b=1476.0, m_w=1813.0,
+    k_p=2 * 1.2e6, c_p=2 * 4.0e3, k_s=2 * 430.0e3, c_s=2 * 20.0e3,
+    L_v=9.5, L_b=1.28,
+)
+SEED_TABLE2_MANCHESTER = {"carbody_bounce": 1.07, "carbody_pitch": 1.28, "bogie_bounce": 7.47, "bogie_pitch": 11.68}
+
+VEHICLES = {"intercity": INTERCITY_TRAILER, "manchester": MANCHESTER_BENCHMARK}
