@@ -1,0 +1,87 @@
+"""Frequencies of a whole population of parameter sets in one batched eigen-solve.
+
+For fixed geometry the 2D car's mass matrix is linear in the masses and inertias and its
+stiffness matrix linear in the stiffnesses: M(p) = sum_i p_i M_i, K(p) = sum_j p_j K_j.
+:class:`LinearFamily` assembles each unit matrix once, with the same builder that makes a
+single model (exact: the matrices are linear, so a difference of two assemblies is the
+unit matrix to round-off), and then solves a population of eigenproblems at once:
+M^-1/2 K M^-1/2 is symmetric because M is diagonal here, so ``numpy.linalg.eigh`` runs
+over the whole batch. Modes are labelled per parameter set by their kinetic energy, as
+:func:`calibration.models.car2d.undamped_modes` does.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .car2d import _GROUPS, build_car
+from .parameters import CarParameters
+
+MASS_NAMES = ("m_v", "J_v", "m_b", "J_b")
+STIFFNESS_NAMES = ("k_p", "k_s")
+
+
+@dataclass(frozen=True)
+class LinearFamily:
+    """The 6-DOF car at fixed geometry as M(p), K(p) linear in the parameters ``names``."""
+
+    base: CarParameters
+    names: tuple[str, ...]
+    dofs: tuple[str, ...]
+    M0: np.ndarray
+    K0: np.ndarray
+    M_unit: dict
+    K_unit: dict
+
+    @classmethod
+    def of_car(cls, base: CarParameters, names=MASS_NAMES + STIFFNESS_NAMES) -> "LinearFamily":
+        unknown = [n for n in names if n not in MASS_NAMES + STIFFNESS_NAMES]
+        if unknown:
+            raise ValueError(f"parameters {unknown} do not enter M or K linearly at fixed geometry")
+        ref = build_car(base)
+        M_unit, K_unit = {}, {}
+        for n in names:
+            bumped = build_car(base.replace(**{n: 2 * getattr(base, n)}))
+            v = getattr(base, n)
+            M_unit[n] = (bumped.M - ref.M) / v
+            K_unit[n] = (bumped.K - ref.K) / v
+        M0 = ref.M - sum(getattr(base, n) * M_unit[n] for n in names)
+        K0 = ref.K - sum(getattr(base, n) * K_unit[n] for n in names)
+        if np.abs(M0 - np.diag(np.diag(M0))).max() > 0 or any(
+                np.abs(m - np.diag(np.diag(m))).max() > 0 for m in M_unit.values()):
+            raise ValueError("the batched solver needs a diagonal mass matrix")
+        return cls(base, tuple(names), ref.dofs, M0, K0, M_unit, K_unit)
+
+    def matrices(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, n, n) mass and stiffness matrices for parameter rows P (N, len(names))."""
+        P = np.atleast_2d(P)
+        M = self.M0 + np.einsum("ni,ijk->njk", P, np.stack([self.M_unit[n] for n in self.names]))
+        K = self.K0 + np.einsum("ni,ijk->njk", P, np.stack([self.K_unit[n] for n in self.names]))
+        return M, K
+
+    def frequencies(self, P: np.ndarray) -> dict[str, np.ndarray]:
+        """Undamped frequencies [Hz] by label for each parameter row; shape (N,) per label.
+
+        Labels follow the kinetic-energy rule of ``undamped_modes``; modes sharing a label
+        (the bogie pairs) are averaged, as :func:`frequencies_by_label` does. A parameter row
+        whose modes do not give every label once or twice gets NaN for the missing label.
+        """
+        M, K = self.matrices(P)
+        d = np.sqrt(np.einsum("njj->nj", M))
+        A = K / d[:, :, None] / d[:, None, :]
+        w2, V = np.linalg.eigh(A)
+        f = np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi)
+        energy = V**2  # mass-normalised shapes: kinetic energy fraction per DOF
+        scores = np.stack([energy[:, [self.dofs.index(x) for x in dofs if x in self.dofs], :].sum(axis=1)
+                           for dofs in _GROUPS.values()], axis=1)  # (N, n_groups, n_modes)
+        label_of = np.argmax(scores, axis=1)  # (N, n_modes)
+        out = {}
+        for g, name in enumerate(_GROUPS):
+            mask = label_of == g
+            count = mask.sum(axis=1)
+            if not count.any():
+                continue
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out[name] = np.where(count > 0, (f * mask).sum(axis=1) / count, np.nan)
+        return out
