@@ -26,6 +26,28 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_INPUT)
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seed must be a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be >= 0, got {value}")
+    return value
+
+
+def _truth_frequencies(campaign_dir) -> dict | None:
+    """Frequencies from a synthetic campaign's truth beside it, for the plots; None otherwise."""
+    path = Path(f"{Path(campaign_dir).resolve()}.truth.json")
+    if not path.is_file():
+        return None
+    try:
+        return {k: float(v) for k, v in json.loads(path.read_text())["frequencies_hz"].items()}
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        print(f"railcal: warning: {path} is not a readable truth file ({e}); plotted without it", file=sys.stderr)
+        return None
+
+
 def _progress(args):
     if getattr(args, "quiet", False):
         return None
@@ -66,9 +88,7 @@ def cmd_identify(args) -> int:
     result = identify_in_service(campaign, settings=settings, progress=_progress(args))
     out = result.to_json()
     png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
-    truth_path = Path(f"{Path(args.campaign).resolve()}.truth.json")
-    truth = json.loads(truth_path.read_text())["frequencies_hz"] if truth_path.is_file() else None
-    plot_identification(result, png, truth=truth)
+    plot_identification(result, png, truth=_truth_frequencies(args.campaign))
     spectra = plot_spectra(result, png.with_name(png.stem + "_spectra.png"))
     out["plot"] = str(png)
     out["plot_spectra"] = None if spectra is None else str(spectra)
@@ -104,11 +124,16 @@ def cmd_modes(args) -> int:
     p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
     asm = build_car(p)
     und = undamped_modes(asm)
-    dmp = {m.label: m for m in damped_modes(asm)}
-    modes = [{"label": m.label, "frequency_hz": m.frequency_hz,
-              "damping_ratio": dmp[m.label].damping_ratio if m.label in dmp else None,
-              "damped_frequency_hz": dmp[m.label].damped_frequency_hz if m.label in dmp else None}
-             for m in und]
+    unpaired = list(damped_modes(asm))
+    modes = []
+    for m in und:  # pair each undamped mode with the nearest damped mode of the same label
+        same = [d for d in unpaired if d.label == m.label]
+        d = min(same, key=lambda d: abs(d.frequency_hz - m.frequency_hz)) if same else None
+        if d is not None:
+            unpaired.remove(d)
+        modes.append({"label": m.label, "frequency_hz": m.frequency_hz,
+                      "damping_ratio": None if d is None else d.damping_ratio,
+                      "damped_frequency_hz": None if d is None else d.damped_frequency_hz})
     if args.out:
         write_json_atomic(args.out, {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(),
                                      "modes": modes})
@@ -134,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     ssub = synth.add_subparsers(dest="kind", required=True, parser_class=_Parser)
     s = ssub.add_parser("in-service", help="in-service journeys (bogie and axle-box sensors)")
     s.add_argument("out", help="campaign folder to create")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("--journeys", type=int, default=10)
     s.add_argument("--length-km", type=float, default=40.0, help="length of the line [km]")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")
@@ -147,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("campaign")
     s.add_argument("--out", required=True, help="JSON result")
     s.add_argument("--plot", default=None, help="PNG (default: beside --out)")
-    s.add_argument("--seed", type=int, default=0, help="seed of the random segment draw")
+    s.add_argument("--seed", type=_seed, default=0, help="seed of the random segment draw")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_identify)
 

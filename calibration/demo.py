@@ -8,6 +8,7 @@ cross-check join as they are built.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -44,7 +45,9 @@ def run_demo(out: Path, *, progress=None) -> Path:
     write_json_atomic(out / "identification.json", ident)
     say("3/3 writing the report")
     report = out / "report.md"
-    report.write_text(_report(truth, result, png.name))
+    tmp = out / ".report.md.partial"
+    tmp.write_text(_report(truth, result, png.name))
+    os.replace(tmp, report)
     return report
 
 

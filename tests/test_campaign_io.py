@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import re
 import shutil
+import tomllib
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+import tomli_w
 
 from calibration.cli import main
 from calibration.data.campaign import CampaignWriter, open_campaign
@@ -250,3 +252,94 @@ def test_argument_errors_exit_2(capsys):
         main(["identify"])
     assert e.value.code == 2
     capsys.readouterr()
+
+
+# ------------------------------------------------ regressions found in review
+def test_short_row_is_refused_not_padded_with_nan(tiny_campaign, tmp_path, capsys):
+    rewrite_run(tiny_campaign, lambda lines: [*lines[:4], "0.04,1.2", *lines[5:]])
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 5", "expected 5 comma-separated fields")
+
+
+def test_indented_comment_lines_keep_line_numbers_right(tiny_campaign, tmp_path, capsys):
+    def spoil(lines):
+        lines = [lines[0], "   # indented comment", *lines[1:]]
+        cells = lines[3].split(",")
+        cells[0] = "nan"  # data row 2 is now file line 4
+        lines[3] = ",".join(cells)
+        return lines
+    rewrite_run(tiny_campaign, spoil)
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 4", "time is missing")
+
+
+def test_duplicate_header_is_named_at_its_own_line(tiny_campaign, tmp_path, capsys):
+    rewrite_run(tiny_campaign, lambda lines: ["# exported", lines[0] + ",speed", *[ln + ",1" for ln in lines[1:]]])
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 2", "duplicate column")
+
+
+def test_non_utf8_bytes_in_a_data_row_are_refused(tiny_campaign, tmp_path, capsys):
+    path = tiny_campaign / "runs" / "run_a.csv"
+    data = path.read_bytes().split(b"\n")
+    data[7] = data[7].replace(b"0", b"\xff", 1)
+    path.write_bytes(b"\n".join(data))
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", r"line 8", "not UTF-8")
+
+
+def test_infinite_time_is_refused(tiny_campaign, tmp_path, capsys):
+    set_cell(tiny_campaign, 400, 0, "inf")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 401", r"column 'time'", "not finite")
+
+
+def test_empty_speed_column_falls_back_to_distance_and_without_distance_is_refused(tiny_campaign, tmp_path,
+                                                                                  capsys):
+    rewrite_run(tiny_campaign, lambda lines: [lines[0]] + [",".join(c if i != 2 else "" for i, c in
+                                                                    enumerate(ln.split(","))) for ln in lines[1:]])
+    run = open_campaign(tiny_campaign).read_run("run_a")
+    assert run.speed is None and run.distance is not None
+    rewrite_run(tiny_campaign, lambda lines: [",".join(c for i, c in enumerate(ln.split(",")) if i != 1)
+                                              for ln in lines])
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"column 'speed'", "no valid sample")
+
+
+@pytest.mark.parametrize("edit, key", [
+    (lambda d: d.update(priors="x"), r"key 'priors'"),
+    (lambda d: d["sensors"][0].update(unit=["g"]), r"key 'sensors\[0\]\.unit'"),
+    (lambda d: d["sensors"][1].update(body=3), r"key 'sensors\[1\]\.body'"),
+])
+def test_values_of_the_wrong_toml_type_are_refused(tiny_campaign, tmp_path, capsys, edit, key):
+    toml = tiny_campaign / "campaign.toml"
+    doc = tomllib.loads(toml.read_text())
+    edit(doc)
+    toml.write_text(tomli_w.dumps(doc))
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", key)
+
+
+def test_too_slow_sampling_for_the_band_is_an_input_error(tiny_campaign, tmp_path, capsys):
+    toml = tiny_campaign / "campaign.toml"
+    toml.write_text(toml.read_text().replace("rate = 100.0", "rate = 41.7"))
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sampling\.rate'", "too slow")
+
+
+def test_runs_shorter_than_a_segment_are_an_input_error(tiny_campaign, tmp_path, capsys):
+    toml = tiny_campaign / "campaign.toml"
+    toml.write_text(toml.read_text().replace("rate = 100.0", "rate = 200.0"))
+    cols = tiny_columns(4000)
+    cols["time"] = np.arange(4000) / 200.0
+    cols["distance"] = 30.0 * cols["time"]  # 600 m
+    shutil.rmtree(tiny_campaign / "runs")
+    (tiny_campaign / "runs").mkdir()
+    pd.DataFrame(cols).to_csv(tiny_campaign / "runs" / "run_a.csv", index=False)
+    identify_rejects(tiny_campaign, tmp_path, capsys, "no usable 2000 m segment", "longest run 600 m")
+
+
+def test_campaign_without_usable_sensors_is_an_input_error(tiny_campaign, tmp_path, capsys):
+    toml = tiny_campaign / "campaign.toml"
+    text = toml.read_text().replace('direction = "z"', 'direction = "y"').replace('direction = "pitch"',
+                                                                                   'direction = "yaw"')
+    toml.write_text(text)
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sensors'", "nothing the in-service identification")
+
+
+def test_negative_seed_is_an_argument_error(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["synth", "in-service", "x", "--seed", "-1"])
+    assert e.value.code == 2 and "seed must be >= 0" in capsys.readouterr().err

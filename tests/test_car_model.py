@@ -151,3 +151,20 @@ def test_manchester_benchmark_reproduces_the_seed_table_2_row(tmp_path, capsys):
     for label, published in SEED_TABLE2_MANCHESTER.items():
         f = np.mean([m["frequency_hz"] for m in modes if m["label"] == label])
         assert f == pytest.approx(published, rel=0.02), label
+
+
+def test_empty_chunk_streams_nothing():
+    sim = ModalSimulator(state_space(build_car(P), [Output("a", "acceleration", "carbody", 0.0)]), 0.002)
+    assert sim.step_chunk(np.zeros((0, 8))).shape == (0, 1)
+
+
+def test_modes_command_pairs_each_bogie_mode_with_its_own_damping(tmp_path, capsys):
+    import json
+
+    from calibration.cli import main
+
+    out = tmp_path / "m.json"
+    assert main(["modes", "--out", str(out)]) == 0
+    capsys.readouterr()
+    bounce = [m for m in json.loads(out.read_text())["modes"] if m["label"] == "bogie_bounce"]
+    assert len(bounce) == 2 and bounce[0]["damping_ratio"] != bounce[1]["damping_ratio"]

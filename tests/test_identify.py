@@ -70,13 +70,15 @@ def test_trailing_rail_is_the_leading_rail_seen_2_L_v_later(synthetic_campaign):
 
 def test_identify_command_writes_modes_and_rejected_peaks(synthetic_campaign, tmp_path, capsys):
     root, _ = synthetic_campaign
-    out = tmp_path / "ident.json"
+    out = tmp_path / "new_folder" / "ident.json"  # a missing output folder is created
     assert main(["identify", str(root), "--out", str(out), "--quiet"]) == 0
     data = json.loads(out.read_text())
     assert {m["label"] for m in data["modes"]} == set(RIGID_LABELS)
     assert all({"label", "frequency_hz"} <= set(m) for m in data["modes"])
     assert all({"frequency_hz", "reason"} <= set(p) for p in data["rejected_peaks"])
-    assert (tmp_path / "ident.png").stat().st_size > 10_000
+    assert (out.parent / "ident.png").stat().st_size > 10_000
+    assert (out.parent / "ident_spectra.png").stat().st_size > 10_000
+    assert not list(out.parent.glob(".*partial*"))
     assert "identified 4 modes" in capsys.readouterr().out
 
 
@@ -108,3 +110,26 @@ def test_without_axle_boxes_identification_falls_back_to_fdd_peaks(synthetic_cam
     assert all(m.method == "fdd_peak" for m in result.modes)
     pitch = result.mode("bogie_pitch")  # the gyro's summed singular value peaks at the pitch mode
     assert pitch.frequency_hz == pytest.approx(truth["frequencies_hz"]["bogie_pitch"], rel=0.08)
+
+
+def test_rail_pitch_follows_the_pitch_convention(identified):
+    # a rail lower under the front wheelset pitches the bogie positively (front down):
+    # below its resonance the bogie follows the rail, so the pitch FRF is close to +1
+    result, _ = identified
+    frf = result.frfs["pitch"]
+    k = int(np.argmin(np.abs(frf.frequency - 2.0)))
+    assert frf.H[k].real == pytest.approx(1.0, abs=0.15)
+
+
+def test_a_bad_gyro_sample_invalidates_its_neighbours_in_the_centre_acceleration(synthetic_campaign):
+    root, _ = synthetic_campaign
+    campaign = open_campaign(root)
+    run = campaign.read_run(campaign.run_ids[0])
+    gyro_ok = run.valid["bogie1_gyro_pitch"].copy()
+    run.valid["bogie1_gyro_pitch"][100] = False
+    try:
+        centre = derived_channels(campaign.meta)["bogie1_centre_acc_z"]
+        _, ok = centre.evaluate(run, 0, 200, run.distance)
+        assert not ok[99:102].any() and ok[97] and ok[103]
+    finally:
+        run.valid["bogie1_gyro_pitch"][:] = gyro_ok

@@ -72,3 +72,13 @@ def test_rational_fit_returns_the_poles_of_a_base_excited_oscillator(fn, zeta):
     assert pole.frequency_hz == pytest.approx(fn, rel=1e-9)
     assert pole.damping_ratio == pytest.approx(zeta, rel=1e-9)
     assert pole.damped_frequency_hz == pytest.approx(fn * np.sqrt(1 - zeta**2), rel=1e-9)
+
+
+def test_band_slices_are_not_halved_like_dc_and_nyquist():
+    from calibration.identification.fdd import csd_from_frames, welch_frames
+
+    x = np.random.default_rng(2).normal(size=(2, 20_000))
+    X, f, scale = welch_frames(x, 100.0, FDDSettings())
+    full = csd_from_frames(X, scale)
+    inner = csd_from_frames(X[:, :, 5:-5], scale, full_spectrum=False)
+    np.testing.assert_allclose(inner, full[5:-5])

@@ -17,6 +17,7 @@ Choices where the spec leaves room:
 from __future__ import annotations
 
 import difflib
+import io
 import json
 import math
 import os
@@ -137,6 +138,8 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
     if kind not in KINDS:
         raise CampaignError(f"expected one of {', '.join(KINDS)}, got {kind!r}", path=path, key="kind")
     vehicle = data.get("vehicle", {})
+    if not isinstance(vehicle, (dict, str)):
+        raise CampaignError(f"expected a [vehicle] table or a name, got {vehicle!r}", path=path, key="vehicle")
     vehicle_name = data.get("vehicle") if isinstance(data.get("vehicle"), str) else ""
     geometry: dict[str, float] = {}
     if isinstance(vehicle, dict):
@@ -149,7 +152,10 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
             elif k != "name":
                 warnings.warn(f"{path}: unknown key 'vehicle.{k}' ignored", stacklevel=2)
     priors: dict[str, Prior] = {}
-    for pname, pr in (data.get("priors") or {}).items():
+    raw_priors = data.get("priors") or {}
+    if not isinstance(raw_priors, dict):
+        raise CampaignError("expected tables [priors.NAME] with nominal, low, high", path=path, key="priors")
+    for pname, pr in raw_priors.items():
         key = f"priors.{pname}"
         if not isinstance(pr, dict):
             raise CampaignError("expected a table with nominal, low, high", path=path, key=key)
@@ -178,6 +184,8 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
         for k in ("name", "quantity", "unit", "body", "direction", "position"):
             if k not in s:
                 raise CampaignError(f"missing '{k}'", path=path, key=key)
+            if k != "position" and not isinstance(s[k], str):
+                raise CampaignError(f"expected a string, got {s[k]!r}", path=path, key=f"{key}.{k}")
         name = s["name"]
         if not isinstance(name, str) or not NAME_RE.match(name):
             raise CampaignError(f"sensor name {name!r} must match [A-Za-z0-9_]+", path=path, key=f"{key}.name")
@@ -218,7 +226,7 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
     excitation = None
     if kind == "stationary_excitation":
         ex = data.get("excitation")
-        if not isinstance(ex, dict) or "sensor" not in ex:
+        if not isinstance(ex, dict) or not isinstance(ex.get("sensor"), str):
             raise CampaignError("a stationary_excitation campaign needs [excitation] sensor = ...", path=path,
                                 key="excitation")
         if ex["sensor"] not in seen:
@@ -259,92 +267,99 @@ class Run:
         return self.time.size
 
 
-def _line_numbers(path: Path) -> np.ndarray:
-    """File line number (1-based) of each data row of a CSV (header and comments skipped)."""
-    lines = []
-    header_seen = False
-    with open(path, "rb") as f:
-        for i, raw in enumerate(f, start=1):
-            if raw.lstrip().startswith(b"#") or not raw.strip():
-                continue
-            if not header_seen:
-                header_seen = True
-                continue
-            lines.append(i)
-    return np.asarray(lines)
+@dataclass(frozen=True)
+class _Table:
+    """Columns as read, and where each data row stands in the file (1-based line numbers;
+    None for Parquet, where messages name the row instead)."""
+
+    columns: dict
+    lines: np.ndarray | None
+
+    def where(self, row: int) -> dict:
+        return {"line": int(self.lines[row])} if self.lines is not None else {}
+
+    def row_word(self, row: int) -> str:
+        return "" if self.lines is not None else f" (row {row})"
 
 
-def _read_csv(path: Path) -> pd.DataFrame:
+def _read_csv(path: Path) -> _Table:
+    """Read a CSV run or track file strictly. A comment is a line whose first non-blank
+    character is '#'; blank lines are skipped; every other line after the header must have
+    the header's number of fields; cells are numbers, empty or nan."""
     try:
-        with open(path, "rb") as f:
-            head = b""
-            for raw in f:
-                if raw.lstrip().startswith(b"#") or not raw.strip():
-                    continue
-                head = raw
-                break
+        data = path.read_bytes()
     except OSError as e:
         raise CampaignError(f"cannot read: {e.strerror}", path=path) from None
-    if not head:
+    raw_lines = data.split(b"\n")
+    kept, numbers = [], []
+    for i, raw in enumerate(raw_lines, start=1):
+        stripped = raw.strip()
+        if not stripped or stripped.startswith(b"#"):
+            continue
+        kept.append(raw.rstrip(b"\r"))
+        numbers.append(i)
+    if not kept:
         raise CampaignError("no header row", path=path)
+    header_line = numbers[0]
     try:
-        head.decode("utf-8")
+        names = [c.strip() for c in kept[0].decode("utf-8").split(",")]
     except UnicodeDecodeError:
-        raise CampaignError("not UTF-8 text", path=path) from None
-    names = [c.strip() for c in head.decode().strip().split(",")]
+        raise CampaignError("header is not UTF-8 text", path=path, line=header_line) from None
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
-        raise CampaignError(f"duplicate column(s) {', '.join(dup)} in the header", path=path, line=1)
+        raise CampaignError(f"duplicate column(s) {', '.join(dup)} in the header", path=path, line=header_line)
+    expected = len(names) - 1
+    counts = np.fromiter((ln.count(b",") for ln in kept), int, len(kept))
+    bad = np.flatnonzero(counts != expected)
+    if bad.size:
+        k = int(bad[0])
+        raise CampaignError(f"expected {expected + 1} comma-separated fields (as the header), found {counts[k] + 1}",
+                            path=path, line=numbers[k])
+    lines = np.asarray(numbers[1:])
+    body = b"\n".join(kept)
+    try:
+        body.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = numbers[body[:e.start].count(b"\n")]
+        raise CampaignError("not UTF-8 text", path=path, line=line) from None
     try:
         # fast path: every cell a number, empty or nan
-        df = pd.read_csv(path, comment="#", dtype=np.float64, skip_blank_lines=True, engine="c",
-                         na_values=["", "nan", "NaN", "NAN"], keep_default_na=False, skipinitialspace=True)
+        df = pd.read_csv(io.BytesIO(body), dtype=np.float64, engine="c", na_values=["", "nan", "NaN", "NAN"],
+                         keep_default_na=False, skipinitialspace=True)
     except ValueError:
-        # slow path, only to say which cell is not a number (see _to_float_columns)
-        try:
-            df = pd.read_csv(path, comment="#", dtype=str, skip_blank_lines=True, engine="c",
-                             keep_default_na=False, na_filter=False)
-        except pd.errors.ParserError as e:
-            _raise_parser_error(path, e)
-    except pd.errors.ParserError as e:
-        _raise_parser_error(path, e)
+        # slow path, only to say which cell is not a number
+        df = pd.read_csv(io.BytesIO(body), dtype=str, engine="c", keep_default_na=False, na_filter=False)
     df.columns = [c.strip() for c in df.columns]
-    return df
+    return _Table(_to_float_columns(df, path, lines), lines)
 
 
-def _raise_parser_error(path: Path, e: Exception):
-    """Name the first row whose field count differs from the header's (file line numbers)."""
-    expected = None
-    with open(path, "rb") as f:
-        for i, raw in enumerate(f, start=1):
-            if raw.lstrip().startswith(b"#") or not raw.strip():
-                continue
-            n = raw.count(b",") + 1
-            if expected is None:
-                expected = n
-            elif n != expected:
-                raise CampaignError(f"expected {expected} comma-separated fields (as the header), found {n}",
-                                    path=path, line=i) from None
-    raise CampaignError(f"cannot parse CSV: {e}", path=path) from None
+def _read_parquet(path: Path, columns=None) -> _Table:
+    try:
+        if columns is not None:
+            names = pq.read_schema(path).names
+            columns = [c for c in columns if c in names]
+        df = pq.read_table(path, columns=columns).to_pandas()
+    except (pa.ArrowInvalid, OSError) as e:
+        raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
+    return _Table(_to_float_columns(df, path, None), None)
 
 
-def _to_float_columns(df: pd.DataFrame, path: Path, is_csv: bool) -> dict[str, np.ndarray]:
+def _to_float_columns(df: pd.DataFrame, path: Path, lines: np.ndarray | None) -> dict[str, np.ndarray]:
     out = {}
     for col in df.columns:
         s = df[col]
         if pd.api.types.is_float_dtype(s):
             out[col] = s.to_numpy(dtype=float)
             continue
-        if is_csv:
+        if lines is not None:
             text = s.str.strip()
             empty = (text == "") | (text.str.lower() == "nan")
             vals = pd.to_numeric(text.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
             bad = np.isnan(vals) & ~empty.to_numpy()
             if bad.any():
                 row = int(np.argmax(bad))
-                line = int(_line_numbers(path)[row])
                 raise CampaignError(f"'{s.iloc[row]}' is not a number (use an empty cell or nan for a missing "
-                                    f"sample)", path=path, line=line, column=col)
+                                    f"sample)", path=path, line=int(lines[row]), column=col)
         else:
             if not (pd.api.types.is_numeric_dtype(s) or pd.api.types.is_bool_dtype(s)):
                 raise CampaignError(f"column type {s.dtype} is not numeric", path=path, column=col)
@@ -353,11 +368,9 @@ def _to_float_columns(df: pd.DataFrame, path: Path, is_csv: bool) -> dict[str, n
     return out
 
 
-def _check_axes(cols: dict, path: Path, meta: CampaignMeta, is_csv: bool):
+def _check_axes(table: _Table, path: Path, meta: CampaignMeta):
     """Check the time, distance and speed columns; returns (time, distance | None, speed | None)."""
-    line_of = (lambda row: int(_line_numbers(path)[row])) if is_csv else (lambda row: None)
-    where_row = (lambda row: {"line": line_of(row)}) if is_csv else (lambda row: {})
-    row_word = "" if is_csv else " (row {row})"
+    cols = table.columns
     if "time" not in cols:
         raise CampaignError("missing required column 'time'", path=path, column="time")
     if meta.kind == "in_service" and "distance" not in cols and "speed" not in cols:
@@ -365,47 +378,44 @@ def _check_axes(cols: dict, path: Path, meta: CampaignMeta, is_csv: bool):
     t = cols["time"]
     if t.size < 2:
         raise CampaignError("fewer than two samples", path=path, column="time")
-    if np.isnan(t).any():
-        row = int(np.argmax(np.isnan(t)))
-        raise CampaignError("time is missing" + row_word.format(row=row), path=path, column="time",
-                            **where_row(row))
+    for name in ("time", "distance"):
+        x = cols.get(name)
+        if x is not None and not np.isfinite(x).all():
+            row = int(np.argmax(~np.isfinite(x)))
+            raise CampaignError(f"{name} is missing or not finite ({x[row]!r})" + table.row_word(row), path=path,
+                                column=name, **table.where(row))
     dt = np.diff(t)
     if (dt <= 0).any():
         row = int(np.argmax(dt <= 0)) + 1
         raise CampaignError(f"time not strictly increasing ({t[row - 1]!r} then {t[row]!r})"
-                            + row_word.format(row=row), path=path, column="time", **where_row(row))
+                            + table.row_word(row), path=path, column="time", **table.where(row))
     distance = cols.get("distance")
     if distance is not None:
-        if np.isnan(distance).any():
-            row = int(np.argmax(np.isnan(distance)))
-            raise CampaignError("distance is missing" + row_word.format(row=row), path=path, column="distance",
-                                **where_row(row))
         dd = np.diff(distance)
         if (dd < 0).any():
             row = int(np.argmax(dd < 0)) + 1
             raise CampaignError(f"distance decreases ({distance[row - 1]!r} then {distance[row]!r})"
-                                + row_word.format(row=row), path=path, column="distance", **where_row(row))
+                                + table.row_word(row), path=path, column="distance", **table.where(row))
     speed = cols.get("speed")
-    if speed is not None and np.nanmin(speed) < 0:
-        row = int(np.nanargmin(speed))
-        raise CampaignError("negative speed" + row_word.format(row=row), path=path, column="speed",
-                            **where_row(row))
-
+    if speed is not None:
+        finite = np.isfinite(speed)
+        if not finite.any():
+            if distance is None:
+                raise CampaignError("speed column has no valid sample and there is no distance column", path=path,
+                                    column="speed")
+            speed = None  # an empty optional column: distance alone locates the run
+        elif (speed[finite] < 0).any() or np.isinf(speed).any():
+            row = int(np.argmax(~finite & ~np.isnan(speed) | (np.nan_to_num(speed) < 0)))
+            raise CampaignError(f"negative or infinite speed ({speed[row]!r})" + table.row_word(row), path=path,
+                                column="speed", **table.where(row))
     return t, distance, speed
 
 
 def read_run_file(path: Path, meta: CampaignMeta) -> Run:
     """Read and check one run file (CSV or Parquet) and convert it to SI units."""
     path = Path(path)
-    is_csv = path.suffix.lower() == ".csv"
-    if is_csv:
-        df = _read_csv(path)
-    else:
-        try:
-            df = pq.read_table(path).to_pandas()
-        except (pa.ArrowInvalid, OSError) as e:
-            raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
-    cols = _to_float_columns(df, path, is_csv)
+    table = _read_csv(path) if path.suffix.lower() == ".csv" else _read_parquet(path)
+    cols = table.columns
     names = list(cols)
     declared = {s.name for s in meta.sensors}
     known = declared | {"time", "distance", "speed"} | {f"{n}_clipped" for n in declared}
@@ -418,7 +428,7 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
     for s in meta.sensors:
         if s.name not in cols:
             raise CampaignError(f"missing column for sensor declared in campaign.toml", path=path, column=s.name)
-    t, distance, speed = _check_axes(cols, path, meta, is_csv)
+    t, distance, speed = _check_axes(table, path, meta)
     dt = np.diff(t)
     channels, valid = {}, {}
     for s in meta.sensors:
@@ -464,20 +474,19 @@ def read_track_file(path: Path) -> TrackRecording:
         if band not in TRACK_BANDS:
             raise CampaignError(f"unknown band {band!r}; expected one of {', '.join(TRACK_BANDS)}", path=path,
                                 line=1)
-    df = _read_csv(path)
-    cols = _to_float_columns(df, path, True)
+    table = _read_csv(path)
+    cols = table.columns
     for c in ("distance", "level"):
         if c not in cols:
             raise CampaignError(f"missing required column '{c}'", path=path, column=c)
     d, z = cols["distance"], cols["level"]
     for c, v in (("distance", d), ("level", z)):
-        if np.isnan(v).any():
-            row = int(np.argmax(np.isnan(v)))
-            raise CampaignError("missing value", path=path, column=c, line=int(_line_numbers(path)[row]))
+        if not np.isfinite(v).all():
+            row = int(np.argmax(~np.isfinite(v)))
+            raise CampaignError("missing or non-finite value", path=path, column=c, **table.where(row))
     if (np.diff(d) <= 0).any():
         row = int(np.argmax(np.diff(d) <= 0)) + 1
-        raise CampaignError("distance not strictly increasing", path=path, column="distance",
-                            line=int(_line_numbers(path)[row]))
+        raise CampaignError("distance not strictly increasing", path=path, column="distance", **table.where(row))
     return TrackRecording(path.stem, path, d, z, band)
 
 
@@ -513,15 +522,11 @@ class Campaign:
         path = Path(path)
         axes = ("time", "distance", "speed")
         if path.suffix.lower() == ".parquet":
-            try:
-                names = pq.read_schema(path).names
-                df = pq.read_table(path, columns=[c for c in axes if c in names]).to_pandas()
-            except (pa.ArrowInvalid, OSError) as e:
-                raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
-            cols = _to_float_columns(df, path, False)
+            table = _read_parquet(path, columns=axes)
         else:
-            cols = {k: v for k, v in _to_float_columns(_read_csv(path), path, True).items() if k in axes}
-        t, distance, speed = _check_axes(cols, path, self.meta, path.suffix.lower() == ".csv")
+            full = _read_csv(path)
+            table = _Table({k: v for k, v in full.columns.items() if k in axes}, full.lines)
+        t, distance, speed = _check_axes(table, path, self.meta)
         return {k: v for k, v in (("time", t), ("distance", distance), ("speed", speed)) if v is not None}
 
 

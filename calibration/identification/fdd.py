@@ -90,15 +90,18 @@ class CentreAcceleration:
     def evaluate(self, run: Run, i0: int, i1: int, d: np.ndarray):
         acc, ok_a = _raw(run, self.accelerometer, i0, i1)
         rate, ok_g = _raw(run, self.gyro, i0, i1)
+        # the central difference at a sample reads its neighbours: a bad gyro sample spoils three
+        ok_g = ok_g & np.concatenate([[True], ok_g[:-1]]) & np.concatenate([ok_g[1:], [True]])
         return acc + self.lever * np.gradient(np.nan_to_num(rate), run.time[i0:i1]), ok_a & ok_g
 
 
 @dataclass(frozen=True)
 class RailInput:
     """Rail acceleration under a bogie from its axle-box accelerometers (wheelsets on the
-    rail): bounce = mean over the bogie's axle boxes [m/s^2], pitch = (front - rear axle
-    mean) / (2 L_b) [rad/s^2], optionally seen ``delay`` metres later, i.e. under a bogie
-    that follows at that distance (the trailing bogie runs over the same rail)."""
+    rail): bounce = mean over the bogie's axle boxes [m/s^2], pitch = (rear - front axle
+    mean) / (2 L_b) [rad/s^2] (a point at x moves z - x theta, so a rail lower under the
+    front wheelset is a positive pitch), optionally seen ``delay`` metres later, i.e. under a
+    bogie that follows at that distance (the trailing bogie runs over the same rail)."""
 
     name: str
     front: tuple[str, ...]
@@ -121,7 +124,7 @@ class RailInput:
             parts[group] = np.mean(vals, axis=0)
         if self.kind == "bounce":
             return 0.5 * (parts["front"] + parts["rear"]), ok
-        return (parts["front"] - parts["rear"]) / (2 * self.semi_wheelbase), ok
+        return (parts["rear"] - parts["front"]) / (2 * self.semi_wheelbase), ok
 
     def evaluate(self, run: Run, i0: int, i1: int, d: np.ndarray):
         if self.delay == 0.0:
@@ -309,13 +312,16 @@ def welch_frames(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.nd
     return X, np.fft.rfftfreq(nfft, 1 / fs), 2.0 / (fs * np.sum(win**2))
 
 
-def csd_from_frames(X: np.ndarray, scale: float, rows=None) -> np.ndarray:
-    """Welch CSD matrix (n_freq, n_ch, n_ch) from :func:`welch_frames` output (optionally of some rows)."""
+def csd_from_frames(X: np.ndarray, scale: float, rows=None, *, full_spectrum: bool = True) -> np.ndarray:
+    """Welch CSD matrix (n_freq, n_ch, n_ch) from :func:`welch_frames` output (optionally of
+    some rows). With ``full_spectrum`` the first and last bins are DC and Nyquist, which a
+    one-sided density does not double; pass False for a slice that excludes both."""
     if rows is not None:
         X = X[:, rows]
     G = np.einsum("wif,wjf->fij", X, np.conj(X)) * (scale / X.shape[0])
-    G[0] /= 2  # DC and Nyquist are not doubled in a one-sided density
-    G[-1] /= 2
+    if full_spectrum:
+        G[0] /= 2
+        G[-1] /= 2
     return G
 
 
@@ -349,18 +355,19 @@ def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, sett
     x = x[:, lo:hi]
     t = run.time[p0 + lo:p0 + hi]
     if np.ptp(np.diff(t)) > 1e-3 / fs:  # irregular sampling inside a block: uniform grid
-        tu = np.arange(t[0], t[-1], 1.0 / fs)
-        x = np.vstack([np.interp(tu, t, row) for row in x])
+        t_uniform = t[0] + np.arange(int((t[-1] - t[0]) * fs) + 1) / fs
+        x = np.vstack([np.interp(t_uniform, t, row) for row in x])
     x = x - x.mean(axis=1, keepdims=True)
     xf = bandpass(x, fs, settings.band, order=settings.order, axis=1)
     frac = Fraction(settings.fs_analysis / fs).limit_denominator(1000)
     xr = scipy.signal.resample_poly(xf, frac.numerator, frac.denominator, axis=1) if frac != 1 else xf
     exact = frac == Fraction(settings.fs_analysis / fs)
     fs_a = settings.fs_analysis if exact else fs * frac.numerator / frac.denominator
-    a = int(round((i0 - p0 - lo) * fs_a / fs))
-    b = int(round((i1 - p0 - lo) * fs_a / fs))
+    # the validated samples [i0, i1) by their times, on the resampled grid
+    a = int(round((run.time[i0] - t[0]) * fs_a))
+    b = min(xr.shape[1], int(round((run.time[i1 - 1] - t[0]) * fs_a)) + 1)
     speed = float((seg.end - seg.start) / (run.time[i1 - 1] - run.time[i0]))
-    if b - a < int(round(settings.window * fs_a)):
+    if a < 0 or b - a < int(round(settings.window * fs_a)):
         return None, "segment shorter than one Welch window"
     return (xr[:, a:b], fs_a, speed), ""
 
@@ -424,7 +431,7 @@ class SegmentalFDDAccumulator:
             for a in self.analyses:
                 if k >= a.n_fdds:
                     continue
-                G = csd_from_frames(X[:, :, band], scale, self.rows[a.name])
+                G = csd_from_frames(X[:, :, band], scale, self.rows[a.name], full_spectrum=False)
                 if st.normalise:
                     G = G / (np.real(np.trace(G, axis1=1, axis2=2)).sum() * (f[1] - f[0]))
                 self.sums[a.name].add(G, speed)

@@ -29,9 +29,12 @@ import numpy as np
 import scipy.ndimage
 import scipy.signal
 
+import warnings
+
 from ..data.campaign import Campaign
+from ..data.errors import CampaignError
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
-from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters
+from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
 from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
 from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
@@ -142,12 +145,20 @@ class InServiceIdentification:
 def prior_parameters(campaign: Campaign) -> CarParameters:
     """The campaign's prior knowledge as a car: prior nominals and geometry over the catalogue."""
     meta = campaign.meta
+    toml = campaign.root / "campaign.toml"
+    for k in sorted(set(meta.priors) - set(CAR_PARAMETER_SPECS)):
+        warnings.warn(f"{toml}: prior '{k}' is not a parameter of the 2D car model; ignored "
+                      f"(known: {', '.join(CAR_PARAMETER_SPECS)})", stacklevel=2)
     values = {k: p.nominal for k, p in meta.priors.items() if k in CAR_PARAMETER_SPECS}
     if "bogie_semi_spacing" in meta.geometry:
         values["L_v"] = meta.geometry["bogie_semi_spacing"]
     if "semi_wheelbase" in meta.geometry:
         values["L_b"] = meta.geometry["semi_wheelbase"]
-    return INTERCITY_TRAILER.replace(**values)
+    try:
+        return INTERCITY_TRAILER.replace(**values)
+    except ParameterError as e:
+        raise CampaignError(f"priors and vehicle geometry do not make a valid car: {e}", path=toml,
+                            key="priors / vehicle") from None
 
 
 def _refine_peak(f: np.ndarray, y: np.ndarray, k: int) -> float:
@@ -215,6 +226,11 @@ def _strongest(poles: list[Pole], n: int) -> list[Pole]:
 def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = IdentifySettings(),
                         progress=None) -> InServiceIdentification:
     meta = campaign.meta
+    toml = campaign.root / "campaign.toml"
+    if meta.sampling_rate <= 2.5 * settings.fdd.band[1]:
+        raise CampaignError(f"{meta.sampling_rate:g} Hz is too slow for the analysis band up to "
+                            f"{settings.fdd.band[1]:g} Hz (needs more than {2.5 * settings.fdd.band[1]:g} Hz)",
+                            path=toml, key="sampling.rate")
     prior = prior_parameters(campaign)
     prior_f = frequencies_by_label(undamped_modes(build_car(prior)))
     analyses = list(plan_analyses(meta))
@@ -227,6 +243,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     if have_io:
         analyses.append(Analysis(IO_ANALYSIS, io_channels + (gyro[0],), settings.io_segments, "input_output",
                                  "bogie1"))
+    if not analyses:
+        raise CampaignError("no vertical accelerometer on an axle box or bogie and no bogie pitch gyro: "
+                            "nothing the in-service identification can use", path=toml, key="sensors")
     # one streaming pass: each run is read once for the FDD segments and the line windows
     plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings.fdd)
     acc = SegmentalFDDAccumulator(meta, tuple(analyses), plan, settings.fdd)
@@ -242,7 +261,13 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
         del run
     fdd = acc.result()
     lines = collector.classify()
-
+    if not fdd.results:
+        longest = max((r["distance_m"][1] - r["distance_m"][0]) for r in runs if r["distance_m"]) if any(
+            r["distance_m"] for r in runs) else 0.0
+        reasons = sorted({o.reason for o in fdd.outcomes if not o.used}) or ["no run is long enough"]
+        raise CampaignError(f"no usable {settings.fdd.segment_length:g} m segment in any run (longest run "
+                            f"{longest:.0f} m; {'; '.join(reasons)})", path=campaign.root)
+    have_io = have_io and IO_ANALYSIS in fdd.results
     peaks = {}
     for name, r in fdd.results.items():
         if name == IO_ANALYSIS:

@@ -1,6 +1,7 @@
 """Figures of an in-service identification (read the result object; compute nothing new)."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import matplotlib
@@ -10,6 +11,20 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .in_service import InServiceIdentification  # noqa: E402
+
+def save_figure(fig, path) -> Path:
+    """Save atomically (temporary file, then rename), creating the folder; closes the figure."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
+    try:
+        fig.savefig(tmp, dpi=fig.dpi)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        tmp.unlink(missing_ok=True)
+    return path
+
 
 _COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_bounce": "tab:green",
             "bogie_pitch": "tab:red"}
@@ -53,10 +68,8 @@ def plot_identification(result: InServiceIdentification, path, *, truth: dict | 
             for lbl, f in truth.items():
                 a.axvline(f, color=_COLOURS.get(lbl, "k"), ls=":", lw=1)
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    fig.set_dpi(110)
+    return save_figure(fig, path)
 
 
 def plot_spectra(result: InServiceIdentification, path) -> Path | None:
@@ -86,7 +99,5 @@ def plot_spectra(result: InServiceIdentification, path) -> Path | None:
     axes[0, 0].set_title("PSD per channel [SI^2/Hz] by speed class; dotted: speed-dependent lines, dashed: fixed tones")
     axes[-1, 0].set_xlabel("frequency [Hz]")
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    fig.set_dpi(100)
+    return save_figure(fig, path)

@@ -67,12 +67,13 @@ class ModalSimulator:
         The first sample of the very first chunk is at the initial state.
         """
         w = np.asarray(w, float)
+        if len(w) == 0:
+            return np.zeros((0, len(self.ss.outputs)))
         if self._static_start and self.p_last is None and len(w):
             w_static = np.where(np.arange(w.shape[1]) < w.shape[1] // 2, w[0], 0.0)
             x0 = -np.linalg.solve(self.ss.A, self.ss.B @ w_static)
             self.eta = np.linalg.solve(self._V, x0.astype(complex))
         p = w @ self.Vinv_B.T  # (N, n_modes)
-        N = len(w)
         r = np.empty_like(p)
         if self.p_last is None:
             r[0] = self.eta
@@ -84,8 +85,7 @@ class ModalSimulator:
             eta[:, i] = scipy.signal.lfilter([1.0], [1.0, -self.a[i]], r[:, i])
         self.eta = eta[-1].copy()
         self.p_last = p[-1].copy()
-        y = (eta @ self.CV.T).real + w @ self.ss.D.T
-        return y if N else np.zeros((0, len(self.ss.outputs)))
+        return (eta @ self.CV.T).real + w @ self.ss.D.T
 
 
 def simulate(ss: StateSpace, w: np.ndarray, dt: float, x0=None) -> np.ndarray:

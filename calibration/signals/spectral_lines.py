@@ -77,7 +77,7 @@ LAG_STEP = 0.25  # [m]
 
 def _impact_autocorrelation(x: np.ndarray, fs: float, speed: float, settings: LineSettings) -> np.ndarray:
     """Normalised autocorrelation of the energy envelope, on the distance-lag grid."""
-    sos = scipy.signal.butter(4, settings.impact_highpass, "highpass", fs=fs, output="sos")
+    sos = scipy.signal.butter(4, min(settings.impact_highpass, 0.4 * fs), "highpass", fs=fs, output="sos")
     e = scipy.signal.sosfiltfilt(sos, x, axis=1) ** 2
     e -= e.mean(axis=1, keepdims=True)
     n = e.shape[1]
@@ -98,7 +98,12 @@ class LineWindowCollector:
         self.f = None
 
     def add_run(self, run) -> None:
-        st, fs = self.settings, self.fs
+        """Windows of this run; sampled at the run's own rate (its time column is
+        authoritative), spectra put on the collector's frequency grid."""
+        st = self.settings
+        fs = 1.0 / float(np.median(np.diff(run.time)))
+        if abs(fs / self.fs - 1) < 1e-6:
+            fs = self.fs
         n = int(st.window * fs)
         nper = int(st.nperseg * fs)
         if run.speed is not None:
@@ -118,8 +123,16 @@ class LineWindowCollector:
                 continue
             if not all(run.valid[ch][s0:s0 + n].all() for ch in self.channels):
                 continue
+            if np.ptp(np.diff(run.time[s0:s0 + n])) > 1e-3 / fs:
+                continue  # irregular sampling: a window needs evenly spaced samples
             X = np.vstack([run.channels[ch][s0:s0 + n] for ch in self.channels])
-            self.f, P_si = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
+            f, P_si = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
+            if self.f is None:
+                self.f = f
+            elif f.size != self.f.size or not np.allclose(f, self.f):
+                P_si = np.stack([np.interp(self.f, f, row, right=np.nan) for row in P_si])
+                if np.isnan(P_si).any():
+                    continue
             P = np.log10(np.maximum(P_si, 1e-300))
             P -= np.median(P, axis=1, keepdims=True)
             self.windows.append(_Window(float(v.mean()), P, P_si,
