@@ -427,7 +427,7 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
                                 column=c)
     for s in meta.sensors:
         if s.name not in cols:
-            raise CampaignError(f"missing column for sensor declared in campaign.toml", path=path, column=s.name)
+            raise CampaignError("missing column for sensor declared in campaign.toml", path=path, column=s.name)
     t, distance, speed = _check_axes(table, path, meta)
     dt = np.diff(t)
     channels, valid = {}, {}

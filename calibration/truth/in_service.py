@@ -20,11 +20,11 @@ from one seeded ``numpy.random.Generator``.
 """
 from __future__ import annotations
 
-import sys
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.signal
 
 from ..data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor, write_json_atomic
 from ..data.units import STANDARD_GRAVITY
@@ -131,8 +131,6 @@ def _ou(n: int, dt: float, tau: float, sigma: float, rng: np.random.Generator) -
     a = np.exp(-dt / tau)
     e = rng.normal(0.0, sigma * np.sqrt(1 - a * a), n)
     e[0] = rng.normal(0.0, sigma)
-    import scipy.signal
-
     return scipy.signal.lfilter([1.0], [1.0, -a], e)
 
 
@@ -293,7 +291,3 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
     }
     write_json_atomic(Path(f"{out}.truth.json"), truth)
     return truth
-
-
-def _stderr(msg: str) -> None:
-    print(msg, file=sys.stderr)
