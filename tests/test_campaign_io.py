@@ -50,6 +50,12 @@ def set_cell(root, data_row, column, value):
     return rewrite_run(root, edit)
 
 
+def replace_in_toml(root, old, new):
+    toml = root / "campaign.toml"
+    assert old in toml.read_text()
+    toml.write_text(toml.read_text().replace(old, new))
+
+
 def rewrite_run(root, edit):
     path = root / "runs" / "run_a.csv"
     lines = path.read_text().splitlines()
@@ -141,15 +147,13 @@ def test_non_increasing_time_names_the_line(tiny_campaign, tmp_path, capsys):
 
 
 def test_unknown_unit_names_the_key(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace('unit = "g"', 'unit = "furlong"'))
+    replace_in_toml(tiny_campaign, 'unit = "g"', 'unit = "furlong"')
     identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", r"key 'sensors\[0\]\.unit'",
                      "unknown unit 'furlong'")
 
 
 def test_unit_of_the_wrong_quantity_is_refused(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace('unit = "g"', 'unit = "deg/s"'))
+    replace_in_toml(tiny_campaign, 'unit = "g"', 'unit = "deg/s"')
     identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sensors\[0\]\.unit'", "not a unit of acceleration")
 
 
@@ -160,8 +164,7 @@ def test_all_nan_channel_names_the_column(tiny_campaign, tmp_path, capsys):
 
 
 def test_sensor_declared_twice_is_inconsistent(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace('name = "bogie1_gyro_pitch"', 'name = "bogie1_acc_z"'))
+    replace_in_toml(tiny_campaign, 'name = "bogie1_gyro_pitch"', 'name = "bogie1_acc_z"')
     identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", r"key 'sensors\[1\]\.name'",
                      "declared twice")
 
@@ -182,14 +185,12 @@ def test_ragged_row_names_the_file_line(tiny_campaign, tmp_path, capsys):
 
 
 def test_malformed_toml_names_the_line(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace('kind = "in_service"', 'kind = in_service'))
+    replace_in_toml(tiny_campaign, 'kind = "in_service"', 'kind = in_service')
     identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", r"line 2", "not valid TOML")
 
 
 def test_inverted_prior_bounds_are_infeasible(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace("low = 36850.0", "low = 41000.0"))
+    replace_in_toml(tiny_campaign, "low = 36850.0", "low = 41000.0")
     identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'priors\.m_v'", "infeasible")
 
 
@@ -314,14 +315,12 @@ def test_values_of_the_wrong_toml_type_are_refused(tiny_campaign, tmp_path, caps
 
 
 def test_too_slow_sampling_for_the_band_is_an_input_error(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace("rate = 100.0", "rate = 41.7"))
+    replace_in_toml(tiny_campaign, "rate = 100.0", "rate = 41.7")
     identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sampling\.rate'", "too slow")
 
 
 def test_runs_shorter_than_a_segment_are_an_input_error(tiny_campaign, tmp_path, capsys):
-    toml = tiny_campaign / "campaign.toml"
-    toml.write_text(toml.read_text().replace("rate = 100.0", "rate = 200.0"))
+    replace_in_toml(tiny_campaign, "rate = 100.0", "rate = 200.0")
     cols = tiny_columns(4000)
     cols["time"] = np.arange(4000) / 200.0
     cols["distance"] = 30.0 * cols["time"]  # 600 m
