@@ -63,9 +63,9 @@ class LinearFamily:
     def frequencies(self, P: np.ndarray) -> dict[str, np.ndarray]:
         """Undamped frequencies [Hz] by label for each parameter row; shape (N,) per label.
 
-        Labels follow the kinetic-energy rule of ``undamped_modes``; modes sharing a label
-        (the bogie pairs) are averaged, as :func:`frequencies_by_label` does. A parameter row
-        whose modes do not give every label once or twice gets NaN for the missing label.
+        Labels follow the kinetic-energy rule of ``undamped_modes``; of modes sharing a label
+        (the bogie pairs) the lowest is reported, as :func:`frequencies_by_label` does. A
+        parameter row without a mode of some label gets NaN for it.
         """
         M, K = self.matrices(P)
         d = np.sqrt(np.einsum("njj->nj", M))
@@ -79,9 +79,8 @@ class LinearFamily:
         out = {}
         for g, name in enumerate(_GROUPS):
             mask = label_of == g
-            count = mask.sum(axis=1)
-            if not count.any():
+            if not mask.any():
                 continue
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out[name] = np.where(count > 0, (f * mask).sum(axis=1) / count, np.nan)
+            lowest = np.where(mask, f, np.inf).min(axis=1)
+            out[name] = np.where(np.isfinite(lowest), lowest, np.nan)
         return out

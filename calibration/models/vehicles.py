@@ -8,7 +8,8 @@ INTERCITY_TRAILER is the in-service seed's Hyundai-Rotem 22000 trailer car
   Table 8 the frequencies each reproduces (carbody bounce/pitch, bogie bounce/pitch);
   :func:`infer_seed_geometry` finds the L_v, L_b for which the 6-DOF model with those
   parameter sets reproduces Table 8 best (least squares in relative frequency over all
-  forty numbers). Table 8 is rounded to 0.01 Hz, so the result is uncertain by about
+  forty numbers; bogie bounce is the in-phase, lower mode of the pair, as the seed reports
+  it). Table 8 is rounded to 0.01 Hz, so the result is uncertain by about
   +-0.5 % (bogie pitch: 0.005/4.31 -> L_b +-0.12 %, carbody pitch 0.005/2.19 -> L_v
   +-0.23 %). The values below are that optimum rounded to 1 cm; a test re-runs the
   inference and checks them.
@@ -97,7 +98,7 @@ def infer_seed_geometry(x0=(8.0, 1.25)) -> tuple[float, float, float]:
 INTERCITY_TRAILER = CarParameters(
     m_v=38747.0, J_v=611000.0, m_b=3087.0, J_b=3500.0, m_w=1400.0,
     k_p=2840000.0, c_p=12000.0, k_s=720000.0, c_s=20000.0,
-    L_v=8.03, L_b=1.15,  # infer_seed_geometry(): 8.031, 1.150 (rms 0.27 % over Table 8)
+    L_v=8.03, L_b=1.15,  # infer_seed_geometry(): 8.032, 1.150 (rms 0.14 % over Table 8)
 )
 
 

@@ -12,6 +12,17 @@
 
 The objective takes a population (N, d) and returns (N,) values, so each generation is one
 batched evaluation. Every draw comes from the ``numpy.random.Generator`` passed in.
+
+Smoothing. The seed's text updates mean and deviation straight from the elite
+(``smoothing = 1``). Done that way, on the seed's Table 4 targets with its Table 7 ranges,
+the search collapses before it runs along the valley that k_s, J_v, k_p, m_b and J_b form
+together, and stops at a carbody bounce of 1.05-1.067 Hz. The seed's own Table 8 shows
+1.07-1.08 Hz. The usual smoothed update of Rubinstein & Kroese (new = a * elite +
+(1 - a) * old, a = 0.5-0.7) reaches 1.071-1.078 Hz over a fixed 400 generations, with
+m_v on its bound and J_v, k_s close to Table 9. Under the seed's C_g stopping rule it
+still stops early (1.062 Hz in one run), so the seed's results look like a smoothed CE
+with a looser stopping rule than its text gives. That is open (issue 3). ``smoothing``
+keeps both readings available; the default is the literal text.
 """
 from __future__ import annotations
 
@@ -58,12 +69,15 @@ SEED_TABLE7 = (
 class CESettings:
     population: int = 500
     elite_fraction: float = 0.10
+    smoothing: float = 1.0  # weight of the elite statistics in each update (1 = the seed's text)
     convergence_fraction: float = 0.01
     max_generations: int = 2000
 
     def __post_init__(self):
         if self.population < 10 or not 0 < self.elite_fraction < 1:
             raise ValueError("population >= 10 and 0 < elite_fraction < 1 required")
+        if not 0 < self.smoothing <= 1:
+            raise ValueError(f"smoothing must be in (0, 1], got {self.smoothing}")
 
 
 @dataclass(frozen=True)
@@ -111,7 +125,9 @@ def cross_entropy(objective, parameters: tuple[CEParameter, ...], rng: np.random
         if values[order[0]] < best_value:
             best_value, best = float(values[order[0]]), X[order[0]].copy()
         elite = X[order]
-        new_mu, new_sd = elite.mean(axis=0), np.maximum(elite.std(axis=0), 1e-12 * np.abs(mu0))
+        a = settings.smoothing
+        new_mu = a * elite.mean(axis=0) + (1 - a) * mu
+        new_sd = np.maximum(a * elite.std(axis=0) + (1 - a) * sd, 1e-12 * np.abs(mu0))
         cg = float(np.abs(new_mu - mu).sum())
         history.append({"generation": g, "mean": new_mu, "std": new_sd, "C_g": cg,
                         "elite_best": float(values[order[0]]), "restart": restarts})

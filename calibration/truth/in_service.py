@@ -228,18 +228,19 @@ def simulate_journey(run_id: str, line: Line, p: CarParameters, sensors: tuple[S
 
 # -------------------------------------------------------------------------- campaign
 def modal_truth(p: CarParameters) -> dict:
+    """Frequencies, damped frequencies and damping ratios by label; of a pair sharing a label
+    the lowest mode (the in-phase one, the seed's convention, see ``frequencies_by_label``)."""
     asm = build_car(p)
-    und = undamped_modes(asm)
-    dmp = damped_modes(asm)
-    damped: dict[str, list] = {}
-    for m in dmp:
-        damped.setdefault(m.label, []).append((m.damped_frequency_hz, m.damping_ratio))
+    lowest: dict = {}
+    for m in damped_modes(asm):
+        if m.label not in lowest or m.frequency_hz < lowest[m.label].frequency_hz:
+            lowest[m.label] = m
     return {
-        "frequencies_hz": frequencies_by_label(und),
-        "damped_frequencies_hz": {k: float(np.mean([f for f, _ in v if f is not None])) for k, v in damped.items()},
-        "damping_ratios": {k: float(np.mean([z for _, z in v])) for k, v in damped.items()},
+        "frequencies_hz": frequencies_by_label(undamped_modes(asm)),
+        "damped_frequencies_hz": {k: m.damped_frequency_hz for k, m in lowest.items()},
+        "damping_ratios": {k: m.damping_ratio for k, m in lowest.items()},
         "modes": [{"label": m.label, "frequency_hz": m.frequency_hz, "damped_frequency_hz": m.damped_frequency_hz,
-                   "damping_ratio": m.damping_ratio} for m in dmp],
+                   "damping_ratio": m.damping_ratio} for m in damped_modes(asm)],
     }
 
 
