@@ -5,7 +5,9 @@ import pytest
 from calibration.models.batch import LinearFamily
 from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
 from calibration.models.vehicles import INTERCITY_TRAILER
-from calibration.optimisers.cross_entropy import SEED_TABLE7, CEParameter, CESettings, cross_entropy
+from calibration.optimisers import OPTIMISERS, PSOSettings, SearchParameter
+from calibration.optimisers.cross_entropy import SEED_TABLE7, CESettings, cross_entropy
+from calibration.optimisers.objectives import max_relative_error, sum_squared_error
 
 
 def test_batched_frequencies_equal_the_single_model_for_every_row():
@@ -26,7 +28,7 @@ def test_batched_family_refuses_parameters_that_are_not_linear():
 
 
 def test_cross_entropy_finds_the_minimum_of_a_bowl_inside_truncated_ranges():
-    params = (CEParameter("a", 5.0, 3.0, 0.0, 10.0, 0.01), CEParameter("b", 5.0, 3.0, 0.0, 10.0, 0.01))
+    params = (SearchParameter("a", 5.0, 3.0, 0.0, 10.0, 0.01), SearchParameter("b", 5.0, 3.0, 0.0, 10.0, 0.01))
     target = np.array([2.0, 7.5])
     seen = []
 
@@ -59,7 +61,7 @@ def test_cross_entropy_runs_are_reproducible_from_the_generator_seed():
 
 def test_ce_parameters_refuse_inverted_bounds():
     with pytest.raises(ValueError, match="infeasible"):
-        CEParameter("m_v", 38000.0, 1e3, 40000.0, 36000.0, 50.0)
+        SearchParameter("m_v", 38000.0, 1e3, 40000.0, 36000.0, 50.0)
 
 
 def test_smoothed_ce_over_a_fixed_budget_reaches_the_seed_table_8_neighbourhood():
@@ -81,3 +83,43 @@ def test_smoothed_ce_over_a_fixed_budget_reaches_the_seed_table_8_neighbourhood(
     for label in ("carbody_pitch", "bogie_bounce", "bogie_pitch"):
         assert F[label][0] == pytest.approx(target[label], abs=0.005)
     assert res.mean[0] == pytest.approx(36850.0, abs=5.0)  # m_v on its lower bound, as in the seed
+
+
+@pytest.mark.parametrize("name", sorted(OPTIMISERS))
+def test_every_registered_optimiser_finds_a_bowl_minimum_with_one_call_per_iteration(name):
+    optimiser, settings_type = OPTIMISERS[name]
+    params = tuple(SearchParameter(n, 5.0, 3.0, 0.0, 10.0, 0.01) for n in ("a", "b", "c"))
+    target = np.array([2.0, 7.5, 4.0])
+    sizes = []
+
+    def objective(X):
+        sizes.append(len(X))
+        return ((X - target) ** 2).sum(axis=1)
+
+    small = {"ce": dict(population=200), "pso": dict(particles=60, iterations=300, target=1e-10)}[name]
+    res = optimiser(objective, params, np.random.default_rng(3), settings=settings_type(**small))
+    best = res.mean if name == "ce" else res.best
+    np.testing.assert_allclose(best, target, atol=0.02)
+    assert max(sizes) == small.get("population", small.get("particles"))
+
+
+def test_pso_stops_at_its_target_like_the_rtri_rule():
+    params = tuple(SearchParameter(n, 5.0, 3.0, 0.0, 10.0, 0.01) for n in ("a", "b"))
+    res = __import__("calibration.optimisers", fromlist=["particle_swarm"]).particle_swarm(
+        lambda X: ((X - 3.0) ** 2).sum(axis=1), params, np.random.default_rng(0),
+        settings=PSOSettings(particles=40, iterations=1000, target=1e-4))
+    assert res.reached_target and res.best_value <= 1e-4 and res.iterations < 1000
+
+
+def test_pso_refuses_parameters_without_a_range():
+    from calibration.optimisers import particle_swarm
+
+    with pytest.raises(ValueError, match="finite range.*J_v"):
+        particle_swarm(lambda X: X.sum(axis=1), SEED_TABLE7, np.random.default_rng(0))
+
+
+def test_objectives_are_the_seeds_equations():
+    F = {"a": np.array([1.0, 2.2]), "b": np.array([4.0, 4.0])}
+    targets = {"a": 2.0, "b": 4.4}
+    np.testing.assert_allclose(sum_squared_error(F, targets), [1.0 + 0.16, 0.04 + 0.16])
+    np.testing.assert_allclose(max_relative_error(F, targets), [0.5, 0.1])  # max(0.1, 0.4 / 4.4)

@@ -31,37 +31,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
-
-@dataclass(frozen=True)
-class CEParameter:
-    """One searched parameter: initial mean and deviation, range, convergence range (SI)."""
-
-    name: str
-    mean: float
-    std: float
-    low: float | None
-    high: float | None
-    convergence_range: float
-
-    def __post_init__(self):
-        if self.std <= 0 or self.convergence_range <= 0:
-            raise ValueError(f"{self.name}: std and convergence range must be > 0")
-        if self.low is not None and self.high is not None and not self.low < self.high:
-            raise ValueError(f"{self.name}: low = {self.low} must be below high = {self.high} (infeasible bounds)")
-        lo = 0.0 if self.low is None else self.low
-        hi = np.inf if self.high is None else self.high
-        if not lo <= self.mean <= hi:
-            raise ValueError(f"{self.name}: initial mean {self.mean} outside [{lo}, {hi}]")
+from .base import SearchParameter
 
 
 # Seed Table 7 (units SI; J_v and J_b have no range)
 SEED_TABLE7 = (
-    CEParameter("m_v", 38747.0, 1e3, 36850.0, 40644.0, 50.0),
-    CEParameter("J_v", 611000.0, 1e5, None, None, 1000.0),
-    CEParameter("m_b", 3087.0, 1e3, 2778.0, 3859.0, 25.0),
-    CEParameter("J_b", 3500.0, 1e4, None, None, 25.0),
-    CEParameter("k_p", 2840000.0, 1e6, 2600000.0, 3550000.0, 5000.0),
-    CEParameter("k_s", 720000.0, 1e6, 540000.0, 1080000.0, 5000.0),
+    SearchParameter("m_v", 38747.0, 1e3, 36850.0, 40644.0, 50.0),
+    SearchParameter("J_v", 611000.0, 1e5, None, None, 1000.0),
+    SearchParameter("m_b", 3087.0, 1e3, 2778.0, 3859.0, 25.0),
+    SearchParameter("J_b", 3500.0, 1e4, None, None, 25.0),
+    SearchParameter("k_p", 2840000.0, 1e6, 2600000.0, 3550000.0, 5000.0),
+    SearchParameter("k_s", 720000.0, 1e6, 540000.0, 1080000.0, 5000.0),
 )
 
 
@@ -100,7 +80,7 @@ def _truncated_normal(rng, mean, std, low, high, n):
     return scipy.stats.truncnorm.rvs(a, b, loc=mean, scale=std, size=(n, mean.size), random_state=rng)
 
 
-def cross_entropy(objective, parameters: tuple[CEParameter, ...], rng: np.random.Generator, *,
+def cross_entropy(objective, parameters: tuple[SearchParameter, ...], rng: np.random.Generator, *,
                   settings: CESettings = CESettings()) -> CEResult:
     """Minimise ``objective`` (population -> values) over ``parameters`` (seed section 6.2)."""
     names = tuple(p.name for p in parameters)
