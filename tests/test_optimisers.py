@@ -123,3 +123,39 @@ def test_objectives_are_the_seeds_equations():
     targets = {"a": 2.0, "b": 4.4}
     np.testing.assert_allclose(sum_squared_error(F, targets), [1.0 + 0.16, 0.04 + 0.16])
     np.testing.assert_allclose(max_relative_error(F, targets), [0.5, 0.1])  # max(0.1, 0.4 / 4.4)
+
+
+def test_sensitivities_are_exact_derivatives_of_the_frequencies():
+    from calibration.optimisers.identifiability import frequency_sensitivities
+
+    fam = LinearFamily.of_car(INTERCITY_TRAILER, names=tuple(p.name for p in SEED_TABLE7))
+    labels = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
+    p = np.array([getattr(INTERCITY_TRAILER, n) for n in fam.names])
+    f, J = frequency_sensitivities(fam, p, labels)
+    for j in range(len(p)):
+        h = 1e-6 * p[j]
+        up, dn = p.copy(), p.copy()
+        up[j] += h
+        dn[j] -= h
+        Fu, Fd = fam.frequencies(up[None]), fam.frequencies(dn[None])
+        fd = np.array([(Fu[lbl][0] - Fd[lbl][0]) / (2 * h) for lbl in labels])
+        np.testing.assert_allclose(J[:, j], fd, rtol=1e-5, atol=1e-12 * np.abs(J).max())
+
+
+def test_four_frequencies_leave_two_of_six_parameter_directions_undetermined():
+    from calibration.models.vehicles import SEED_TABLE9
+    from calibration.optimisers.base import bounds
+    from calibration.optimisers.identifiability import identifiability
+
+    fam = LinearFamily.of_car(INTERCITY_TRAILER, names=tuple(p.name for p in SEED_TABLE7))
+    labels = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
+    p = SEED_TABLE9.mean(axis=0)
+    low, high = bounds(SEED_TABLE7)
+    ident = identifiability(fam, p, labels, low=low, high=high)
+    assert ident.rank == 4 and len(ident.undetermined) == 2
+    # along an undetermined direction no targeted frequency moves (to first order)
+    for d in ident.undetermined:
+        np.testing.assert_allclose(ident.sensitivity @ d.vector, 0.0, atol=1e-9)
+    # the seed's calibrated carbody mass sits on its lower limit (its Table 9 discussion)
+    assert "m_v (lower)" in ident.at_bound
+    assert ident.contains(p, p) == [True] * 4
