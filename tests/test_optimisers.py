@@ -139,7 +139,8 @@ def test_sensitivities_are_exact_derivatives_of_the_frequencies():
         dn[j] -= h
         Fu, Fd = fam.frequencies(up[None]), fam.frequencies(dn[None])
         fd = np.array([(Fu[lbl][0] - Fd[lbl][0]) / (2 * h) for lbl in labels])
-        np.testing.assert_allclose(J[:, j], fd, rtol=1e-5, atol=1e-12 * np.abs(J).max())
+        # exact zeros (e.g. carbody pitch vs m_v) come out of the difference as ~1e-15 round-off
+        np.testing.assert_allclose(J[:, j], fd, rtol=1e-5, atol=1e-9 * np.abs(J).max())
 
 
 def test_four_frequencies_leave_two_of_six_parameter_directions_undetermined():
