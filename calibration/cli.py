@@ -141,6 +141,29 @@ def cmd_modes(args) -> int:
     return EXIT_OK
 
 
+# -------------------------------------------------------------------------- calibrate
+def cmd_calibrate(args) -> int:
+    from .calibrate import DEFAULT_SEARCH, calibrate_car, read_priors, read_targets
+
+    if args.model != "car2d":
+        raise InputError(f"model {args.model!r} cannot be calibrated yet; have: car2d", key="--model")
+    if args.campaign is not None:
+        raise InputError("calibration from a campaign is not available yet; identify it and pass the modes "
+                         "with --targets", key="CAMPAIGN")
+    if args.targets is None:
+        raise InputError("give --targets T.toml", key="--targets")
+    if args.runs < 1:
+        raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
+    targets = read_targets(args.targets)
+    search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
+    result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
+                           seed=args.seed)
+    write_json_atomic(args.out, result.to_json())
+    print(f"{args.method} x {args.runs} runs: max error {result.max_error_pct:.3f} %; "
+          f"{result.identifiability['summary']}; wrote {args.out}")
+    return EXIT_OK
+
+
 # ------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
     from .demo import run_demo
@@ -183,6 +206,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--param", action="append", metavar="NAME=VALUE")
     s.add_argument("--out", default=None)
     s.set_defaults(func=cmd_modes)
+
+    s = sub.add_parser("calibrate", help="parameters from target frequencies (global search + identifiability)")
+    s.add_argument("campaign", nargs="?", default=None)
+    s.add_argument("--targets", default=None, help="TOML with [[targets]] label, frequency_hz")
+    s.add_argument("--priors", default=None, help="TOML with [NAME] nominal, low, high (default: seed Table 7)")
+    s.add_argument("--model", default="car2d")
+    s.add_argument("--method", choices=("ce", "pso"), default="ce")
+    s.add_argument("--objective", choices=("sse", "max_rel"), default="sse")
+    s.add_argument("--runs", type=int, default=10)
+    s.add_argument("--seed", type=_seed, default=0)
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output")
