@@ -31,6 +31,7 @@ from .optimisers.base import bounds
 from .optimisers.cross_entropy import SEED_TABLE7
 from .optimisers.identifiability import identifiability
 from .optimisers.objectives import OBJECTIVES
+from .optimisers.refine import refine
 
 LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 SEARCHABLE = MASS_NAMES + STIFFNESS_NAMES
@@ -98,6 +99,7 @@ class CalibrationResult:
     runs: list = field(repr=False)
     fit: list = field(default_factory=list)
     identifiability: dict = field(default_factory=dict)
+    refinement: dict | None = None
 
     @property
     def max_error_pct(self) -> float:
@@ -106,12 +108,12 @@ class CalibrationResult:
     def to_json(self) -> dict:
         return {"model": "car2d", "method": self.method, "objective": self.objective,
                 "parameters": self.parameters.as_dict(), "fit": self.fit, "max_error_pct": self.max_error_pct,
-                "identifiability": self.identifiability, "runs": self.runs}
+                "identifiability": self.identifiability, "refinement": self.refinement, "runs": self.runs}
 
 
 def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...], *, base: CarParameters = INTERCITY_TRAILER,
                   method: str = "ce", objective: str = "sse", runs: int = 10, seed: int = 0, settings=None,
-                  sigma_f: float = 0.005) -> CalibrationResult:
+                  sigma_f: float = 0.005, refine_result: bool = False) -> CalibrationResult:
     if method not in OPTIMISERS:
         raise InputError(f"unknown method {method!r}; have {', '.join(OPTIMISERS)}", key="--method")
     if objective not in OBJECTIVES:
@@ -135,13 +137,20 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
                         "objective": float(evaluate(x[None, :])[0]),
                         "iterations": int(getattr(r, "generations", getattr(r, "iterations", 0)))})
     mean = np.mean([[run["parameters"][n] for n in names] for run in results], axis=0)
+    low, high = bounds(search)
+    refinement = None
+    if refine_result:
+        r = refine(family, mean, targets, low, high)
+        refinement = {"status": r.status, "improved": r.improved, "objective_start": r.objective_start,
+                      "objective_end": r.objective_end, "max_relative_error": r.max_relative_error,
+                      "start_parameters": dict(zip(names, map(float, mean)))}
+        mean = r.parameters
     final = family.base.replace(**dict(zip(names, map(float, mean))))
     F = family.frequencies(mean[None, :])
     fit = [{"label": lbl, "measured_hz": f, "model_hz": float(F[lbl][0]),
             "error_pct": float(100 * (F[lbl][0] / f - 1)), "mac": None} for lbl, f in targets.items()]
-    low, high = bounds(search)
     ident = identifiability(family, mean, tuple(targets), sigma_f=sigma_f, low=low, high=high).to_json()
-    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident)
+    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement)
 
 
 SEED_TABLE4 = {"carbody_bounce": 1.08, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}

@@ -157,9 +157,13 @@ def cmd_calibrate(args) -> int:
     targets = read_targets(args.targets)
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
     result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
-                           seed=args.seed)
+                           seed=args.seed, refine_result=args.refine)
     write_json_atomic(args.out, result.to_json())
-    print(f"{args.method} x {args.runs} runs: max error {result.max_error_pct:.3f} %; "
+    refined = ""
+    if result.refinement is not None:
+        refined = (" after CasADi refinement" if result.refinement["improved"]
+                   else " (refinement did not improve; global result kept)")
+    print(f"{args.method} x {args.runs} runs{refined}: max error {result.max_error_pct:.3g} %; "
           f"{result.identifiability['summary']}; wrote {args.out}")
     return EXIT_OK
 
@@ -215,6 +219,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--method", choices=("ce", "pso"), default="ce")
     s.add_argument("--objective", choices=("sse", "max_rel"), default="sse")
     s.add_argument("--runs", type=int, default=10)
+    s.add_argument("--refine", action="store_true", help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("--out", required=True)
     s.set_defaults(func=cmd_calibrate)

@@ -78,3 +78,36 @@ def re_search(pattern, text):
     import re
 
     return re.search(pattern, text, re.S)
+
+
+SEED_TABLE4 = {"carbody_bounce": 1.08, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}
+
+
+def test_refinement_meets_the_seed_targets_to_1e6_inside_the_ranges():
+    from calibration.optimisers.cross_entropy import SEED_TABLE7
+
+    res = calibrate_car(SEED_TABLE4, SEED_TABLE7, runs=1, seed=0, refine_result=True)
+    ref = res.refinement
+    assert ref["improved"] and ref["objective_end"] < ref["objective_start"]
+    assert ref["max_relative_error"] <= 1e-6
+    assert res.max_error_pct <= 1e-4  # percent
+    for p in SEED_TABLE7:
+        v = getattr(res.parameters, p.name)
+        assert (p.low is None or v >= p.low) and (p.high is None or v <= p.high), p.name
+
+
+def test_refinement_never_returns_worse_than_its_start():
+    from calibration.models.batch import LinearFamily
+    from calibration.optimisers.base import bounds
+    from calibration.optimisers.cross_entropy import SEED_TABLE7
+    from calibration.optimisers.refine import refine
+
+    names = tuple(p.name for p in SEED_TABLE7)
+    fam = LinearFamily.of_car(INTERCITY_TRAILER, names=names)
+    low, high = bounds(SEED_TABLE7)
+    # targets far outside what the ranges allow: the best the NLP can do is still no worse than the start
+    impossible = {"carbody_bounce": 3.0, "carbody_pitch": 0.5, "bogie_bounce": 20.0, "bogie_pitch": 1.0}
+    p0 = np.array([getattr(INTERCITY_TRAILER, n) for n in names])
+    r = refine(fam, p0, impossible, low, high)
+    assert r.objective_end <= r.objective_start
+    assert np.all(r.parameters >= low) and np.all(r.parameters <= high)
