@@ -143,17 +143,24 @@ def cmd_modes(args) -> int:
 
 # -------------------------------------------------------------------------- calibrate
 def cmd_calibrate(args) -> int:
-    from .calibrate import DEFAULT_SEARCH, calibrate_car, read_priors, read_targets
+    from .calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
 
     if args.model != "car2d":
         raise InputError(f"model {args.model!r} cannot be calibrated yet; have: car2d", key="--model")
-    if args.campaign is not None:
-        raise InputError("calibration from a campaign is not available yet; identify it and pass the modes "
-                         "with --targets", key="CAMPAIGN")
-    if args.targets is None:
-        raise InputError("give --targets T.toml", key="--targets")
     if args.runs < 1:
         raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
+    if (args.campaign is None) == (args.targets is None):
+        raise InputError("give either a CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
+    if args.campaign is not None:
+        result, ident = calibrate_campaign(open_campaign(args.campaign), method=args.method, objective=args.objective,
+                                           runs=args.runs, seed=args.seed, refine_result=args.refine,
+                                           progress=_progress(args))
+        out = result.to_json()
+        out["identified_modes"] = [m.to_json() for m in ident.modes]
+        write_json_atomic(args.out, out)
+        print(f"calibrated to {len(result.targets)} identified modes: max error {result.max_error_pct:.3g} %; "
+              f"{result.identifiability['summary']}; wrote {args.out}")
+        return EXIT_OK
     targets = read_targets(args.targets)
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
     result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
@@ -222,6 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--refine", action="store_true", help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("--out", required=True)
+    s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
