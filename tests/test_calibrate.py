@@ -111,3 +111,24 @@ def test_refinement_never_returns_worse_than_its_start():
     r = refine(fam, p0, impossible, low, high)
     assert r.objective_end <= r.objective_start
     assert np.all(r.parameters >= low) and np.all(r.parameters <= high)
+
+
+def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_campaign, tmp_path, capsys):
+    root, truth = synthetic_campaign
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(root), "--refine", "--runs", "1", "--quiet", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert {m["label"] for m in data["identified_modes"]} == {r["label"] for r in data["fit"]}
+    assert data["max_error_pct"] < 1.0 and data["refinement"]["improved"]
+    # the truth differs from the calibration only along what the data cannot determine
+    names = data["identifiability"]["parameters"]
+    x = np.log(np.array([truth["parameters"][n] for n in names]) / np.array([data["parameters"][n] for n in names]))
+    for d in data["identifiability"]["determined_directions"]:
+        lo, hi = d["interval_95_log"]
+        assert lo <= np.array(d["vector"]) @ x <= hi
+    assert "calibrated to 4 identified modes" in capsys.readouterr().out
+
+
+def test_calibrate_needs_exactly_one_of_campaign_or_targets(tmp_path, capsys):
+    assert main(["calibrate", "--out", str(tmp_path / "c.json")]) == 2
+    assert "either a CAMPAIGN or --targets" in capsys.readouterr().err
