@@ -175,6 +175,32 @@ def cmd_calibrate(args) -> int:
     return EXIT_OK
 
 
+# --------------------------------------------------------------------------- validate
+def cmd_validate(args) -> int:
+    from .models.parameters import CarParameters
+    from .validation import plot_validation, validate
+
+    path = Path(args.calibration)
+    try:
+        params = json.loads(path.read_text())["parameters"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InputError(f"not a calibration result with 'parameters': {e}", path=path) from None
+    try:
+        p = CarParameters.from_mapping(params)
+    except ParameterError as e:
+        raise InputError(str(e), path=path, key="parameters") from None
+    result = validate(open_campaign(args.campaign), p, progress=_progress(args))
+    png = plot_validation(result, Path(args.out).with_suffix(".png"))
+    out = result.to_json()
+    out["plot"] = str(png)
+    write_json_atomic(args.out, out)
+    summary = "; ".join(f"{k}: NRMSE {v['nrmse']:.3f}, PSD {v['psd_log_error_db']:.2f} dB"
+                        for k, v in out["channels"].items())
+    print(f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-{result.band_m[1]:g} m): "
+          f"{summary}; wrote {args.out}")
+    return EXIT_OK
+
+
 # ------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
     from .demo import run_demo
@@ -231,6 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_calibrate)
+
+    s = sub.add_parser("validate", help="simulate the runs over the track recording and compare")
+    s.add_argument("campaign")
+    s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
+    s.add_argument("--out", required=True)
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_validate)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output")

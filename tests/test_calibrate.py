@@ -132,3 +132,26 @@ def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_c
 def test_calibrate_needs_exactly_one_of_campaign_or_targets(tmp_path, capsys):
     assert main(["calibrate", "--out", str(tmp_path / "c.json")]) == 2
     assert "either a CAMPAIGN or --targets" in capsys.readouterr().err
+
+
+def test_validate_command_with_the_truth_leaves_little_and_reports_per_channel(synthetic_campaign, tmp_path, capsys):
+    root, truth = synthetic_campaign
+    cal = tmp_path / "truth_as_calibration.json"
+    cal.write_text(json.dumps({"parameters": truth["parameters"]}))
+    out = tmp_path / "val.json"
+    assert main(["validate", str(root), "--calibration", str(cal), "--quiet", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    for name in ("bogie1_acc_z", "bogie1_gyro_pitch"):
+        ch = data["channels"][name]
+        assert ch["nrmse"] < 0.3 and ch["psd_log_error_db"] < 1.0, (name, ch)
+    assert all(abs(r["offset_m"]) < 10 for r in data["runs"])
+    assert (tmp_path / "val.png").is_file()
+    capsys.readouterr()
+
+
+def test_validate_refuses_a_file_that_is_not_a_calibration(synthetic_campaign, tmp_path, capsys):
+    root, _ = synthetic_campaign
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"parameters": {"m_v": -1}}')
+    assert main(["validate", str(root), "--calibration", str(bad), "--out", str(tmp_path / "v.json")]) == 2
+    assert "bad.json" in capsys.readouterr().err

@@ -1,0 +1,228 @@
+"""Validation over a measured track profile (in-service seed, section 7).
+
+The calibrated car runs over the campaign's track recording at each journey's measured
+speed: the rail under wheelset i at time t is the recorded level at s(t) + x_i, where s(t)
+is the journey's distance axis (speed-integrated, GPS-anchored). Its bogie accelerometer
+and gyro are simulated exactly (:mod:`calibration.models.simulate`) where they were mounted.
+
+Measurement and simulation are compared where the recording has content. A recording
+filtered to D1 holds wavelengths 3-25 m (EN 13848-1); at varying speed that is no fixed
+frequency band, so both signals are resampled on distance. The measurement is band-passed
+to those wavelengths (zero-phase Butterworth, as the recording was); the simulation is
+not, since its input, the recording, is band-limited already (filters commute).
+
+A journey's absolute position comes from GPS and wanders by metres, half a wavelength at
+3 m. Each run is therefore synchronised to the recording first: the distance offset
+within +-``max_offset`` that maximises the cross-correlation of measured and simulated
+bogie responses is found, reported, and the run simulated again at that offset.
+
+The comparison:
+
+* ``nrmse``: rms(simulated - measured) / rms(measured) in the band;
+* ``psd_log_error_db``: mean over the band of |10 log10(PSD_sim / PSD_meas)|, Welch
+  spectra over spatial frequency;
+* ``residual_rms``: rms(simulated - measured), to set beside the sensor's noise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.signal
+
+from .data.campaign import Campaign
+from .data.errors import CampaignError
+from .identification.fdd import _distance_axis
+from .models.car2d import Output, build_car, state_space, wheelset_positions
+from .models.parameters import CarParameters
+from .models.simulate import ModalSimulator
+
+BANDS_M = {"D1": (3.0, 25.0), "D2": (25.0, 70.0)}
+STEP_M = 0.25  # [m] distance grid of the comparison
+
+
+@dataclass(frozen=True)
+class ChannelComparison:
+    channel: str
+    nrmse: float
+    psd_log_error_db: float
+    residual_rms: float  # [SI]
+    measured_rms: float  # [SI]
+
+
+@dataclass(frozen=True)
+class RunComparison:
+    run_id: str
+    distance_range: tuple[float, float]  # [m] of the carbody centre
+    mean_speed: float  # [m/s]
+    offset: float  # [m] added to the run's distance axis to match the recording
+    channels: tuple[ChannelComparison, ...]
+    distance: np.ndarray = field(repr=False)
+    measured: dict = field(repr=False)
+    simulated: dict = field(repr=False)
+
+
+@dataclass(frozen=True)
+class ValidationResult:
+    track: str
+    band_m: tuple[float, float]
+    runs: tuple[RunComparison, ...]
+
+    def summary(self) -> dict:
+        """Per channel: median over runs of each metric."""
+        out = {}
+        names = {c.channel for r in self.runs for c in r.channels}
+        for name in sorted(names):
+            rows = [c for r in self.runs for c in r.channels if c.channel == name]
+            out[name] = {"nrmse": float(np.median([c.nrmse for c in rows])),
+                         "psd_log_error_db": float(np.median([c.psd_log_error_db for c in rows])),
+                         "residual_rms": float(np.median([c.residual_rms for c in rows])),
+                         "measured_rms": float(np.median([c.measured_rms for c in rows])), "runs": len(rows)}
+        return out
+
+    def to_json(self) -> dict:
+        return {"track": self.track, "band_m": list(self.band_m), "channels": self.summary(),
+                "runs": [{"run": r.run_id, "distance_range_m": list(r.distance_range), "mean_speed_m_s": r.mean_speed,
+                          "offset_m": r.offset,
+                          "channels": {c.channel: {"nrmse": c.nrmse, "psd_log_error_db": c.psd_log_error_db,
+                                                   "residual_rms": c.residual_rms, "measured_rms": c.measured_rms}
+                                       for c in r.channels}} for r in self.runs]}
+
+
+def _bandpass_distance(x: np.ndarray, band_m: tuple[float, float]) -> np.ndarray:
+    fs = 1.0 / STEP_M  # samples per metre
+    sos = scipy.signal.butter(4, [1.0 / band_m[1], 1.0 / band_m[0]], btype="bandpass", fs=fs, output="sos")
+    return scipy.signal.sosfiltfilt(sos, x)
+
+
+def _compare(name, meas, sim, band_m) -> ChannelComparison:
+    resid = sim - meas
+    nper = min(len(meas), int(4 * band_m[1] / STEP_M))
+    nu, Pm = scipy.signal.welch(meas, fs=1 / STEP_M, nperseg=nper)
+    _, Ps = scipy.signal.welch(sim, fs=1 / STEP_M, nperseg=nper)
+    sel = (nu >= 1 / band_m[1]) & (nu <= 1 / band_m[0])
+    db = float(np.mean(np.abs(10 * np.log10(np.maximum(Ps[sel], 1e-300) / np.maximum(Pm[sel], 1e-300)))))
+    rms_m = float(np.sqrt(np.mean(meas**2)))
+    rms_r = float(np.sqrt(np.mean(resid**2)))
+    return ChannelComparison(name, rms_r / rms_m if rms_m > 0 else float("inf"), db, rms_r, rms_m)
+
+
+def _best_offset(meas: dict, sim: dict, max_offset: float) -> float:
+    """Distance offset [m] that best aligns the simulation with the measurement (summed
+    normalised cross-correlation over the channels, parabolic refinement)."""
+    lags = np.arange(-int(max_offset / STEP_M), int(max_offset / STEP_M) + 1)
+    score = np.zeros(lags.size)
+    for name, m in meas.items():
+        x = sim[name] - sim[name].mean()
+        c = scipy.signal.correlate(m, x, mode="full", method="fft")
+        mid = x.size - 1
+        score += c[mid + lags] / (np.linalg.norm(m) * np.linalg.norm(x) + 1e-300)
+    k = int(np.argmax(score))
+    shift = 0.0
+    if 0 < k < lags.size - 1:
+        a, b, c = score[k - 1:k + 2]
+        if a - 2 * b + c < 0:
+            shift = 0.5 * (a - c) / (a - 2 * b + c)
+    # measured at grid g equals simulated at g - lag: the run sat lag metres further on
+    return float(-(lags[k] + shift) * STEP_M)
+
+
+def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 300.0, max_offset: float = 10.0,
+             progress=None) -> ValidationResult:
+    meta = campaign.meta
+    tracks = [t for t in campaign.tracks() if t.band in BANDS_M]
+    if not tracks:
+        raise CampaignError("no track recording filtered to D1 or D2 in track/: nothing to validate over",
+                            path=campaign.root / "track")
+    track = tracks[0]
+    band = BANDS_M[track.band]
+    slope = np.gradient(track.level, track.distance)
+    xw = wheelset_positions(p)
+    sensors = {s.name: s for s in meta.sensors if s.body == "bogie1"}
+    outputs = [Output(s.name, "acceleration", "bogie1", s.position[0]) for s in sensors.values()
+               if s.quantity == "acceleration" and s.direction == "z"]
+    outputs += [Output(s.name, "pitch_rate", "bogie1") for s in sensors.values()
+                if s.quantity == "angular_velocity" and s.direction == "pitch"]
+    if not outputs:
+        raise CampaignError("no bogie-1 vertical accelerometer or pitch gyro to compare with", path=campaign.root /
+                            "campaign.toml", key="sensors")
+    ss = state_space(build_car(p), outputs)
+    runs = []
+    for run in campaign.iter_runs():
+        d = _distance_axis(run.distance, run.speed, run.time)
+        if run.speed is not None:
+            # over one recorded section the integrated speed is far steadier than GPS fixes:
+            # use it alone, anchored on the blended axis; the correlation then fixes the offset
+            d_speed = _distance_axis(None, run.speed, run.time)
+            d = d_speed + np.median(d - d_speed)
+        inside = (d + xw.max() <= track.distance[-1]) & (d + xw.min() >= track.distance[0])
+        for a, b in run.blocks:
+            idx = np.flatnonzero(inside[a:b]) + a
+            if idx.size < 2 or d[idx[-1]] - d[idx[0]] < min_length:
+                continue
+            i0, i1 = idx[0], idx[-1] + 1
+            t, s = run.time[i0:i1], d[i0:i1]
+            if np.ptp(np.diff(t)) > 1e-3 * np.median(np.diff(t)):
+                continue  # needs evenly spaced samples for the exact discretisation
+            v = np.gradient(s, t)
+            dt = float(np.median(np.diff(t)))
+            grid = np.arange(s[0], s[-1], STEP_M)
+
+            def simulate_at(offset):
+                w = np.empty((t.size, 8))
+                for j in range(4):
+                    w[:, j] = np.interp(s + offset + xw[j], track.distance, track.level)
+                    w[:, 4 + j] = v * np.interp(s + offset + xw[j], track.distance, slope)
+                y = ModalSimulator(ss, dt, x0="static").step_chunk(w)
+                return [np.interp(grid, s, y[:, k]) for k in range(len(outputs))]
+
+            meas = {}
+            for o in outputs:
+                if run.valid[o.name][i0:i1].all():
+                    m = np.interp(grid, s, run.channels[o.name][i0:i1])
+                    meas[o.name] = _bandpass_distance(m - m.mean(), band)
+            if not meas:
+                continue
+            offset = _best_offset(meas, dict(zip([o.name for o in outputs], simulate_at(0.0))), max_offset)
+            sim_all = dict(zip([o.name for o in outputs], simulate_at(offset)))
+            sim = {name: sim_all[name] - sim_all[name].mean() for name in meas}
+            comps = [_compare(name, meas[name], sim[name], band) for name in meas]
+            if comps:
+                runs.append(RunComparison(run.run_id, (float(s[0]), float(s[-1])), float(np.mean(v)), offset,
+                                          tuple(comps), grid, meas, sim))
+                if progress:
+                    progress(f"validate: {run.run_id} over {s[-1] - s[0]:.0f} m at {np.mean(v):.1f} m/s, "
+                             f"synchronised by {offset:+.2f} m")
+    if not runs:
+        raise CampaignError(f"no run covers at least {min_length:g} m of the track recording {track.path.name}",
+                            path=track.path)
+    return ValidationResult(track.name, band, tuple(runs))
+
+
+def plot_validation(result: ValidationResult, path) -> Path:
+    from .identification.plots import plt, save_figure
+
+    r = max(result.runs, key=lambda r: r.distance_range[1] - r.distance_range[0])
+    names = list(r.measured)
+    fig, axes = plt.subplots(len(names), 2, figsize=(12, 3 * len(names)), squeeze=False)
+    for k, name in enumerate(names):
+        ax = axes[k, 0]
+        ax.plot(r.distance, r.measured[name], lw=0.8, label="measured")
+        ax.plot(r.distance, r.simulated[name], lw=0.8, label="simulated")
+        ax.set_title(f"{r.run_id}: {name}, band {result.band_m[0]:g}-{result.band_m[1]:g} m")
+        ax.set_xlabel("distance [m]")
+        ax.legend(fontsize=7)
+        ax = axes[k, 1]
+        nper = min(len(r.distance), int(4 * result.band_m[1] / STEP_M))
+        for label, x in (("measured", r.measured[name]), ("simulated", r.simulated[name])):
+            nu, P = scipy.signal.welch(x, fs=1 / STEP_M, nperseg=nper)
+            sel = nu > 0
+            ax.loglog(1 / nu[sel], P[sel], lw=0.8, label=label)
+        ax.axvspan(*result.band_m, color="0.9")
+        ax.set_xlabel("wavelength [m]")
+        ax.set_title("PSD over spatial frequency")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.set_dpi(100)
+    return save_figure(fig, path)
