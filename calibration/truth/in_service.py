@@ -62,6 +62,7 @@ class InServiceSettings:
     gps_jitter: float = 0.2  # [m] rms per fix
     gps_rate: float = 5.0  # [Hz]
     speed_noise: float = 0.05  # [m/s] GPS Doppler speed rms
+    recording_noise: float = 0.05e-3  # [m] rms of the track recording car's level
     gap_probability: float = 0.5  # per journey: a logger drop-out of 1-4 s
     nan_probability: float = 0.3  # per journey: a 0.2 s NaN burst in one channel
     chunk: int = 1 << 17
@@ -273,7 +274,7 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
         # the track recording car's D1 record of one section
         rec_len = min(2_000.0, 0.5 * settings.line.length)
         start = float(rng.uniform(0.1 * settings.line.length, 0.9 * settings.line.length - rec_len))
-        d, z = line.recording(start, rec_len, rng=rng)
+        d, z = line.recording(start, rec_len, noise=settings.recording_noise, rng=rng)
         w.write_track("trv_d1", d, z, band="D1")
         w.commit()
     truth = {
@@ -286,7 +287,7 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
         "noise_rms_si": {"bogie1_acc_z": settings.bogie_acc_noise,
                          "bogie1_gyro_pitch": float(np.radians(settings.gyro_noise_raw) * settings.gyro_scale),
                          "axle_boxes": settings.axle_acc_noise, "white_up_to_hz": settings.fs / 2,
-                         "track_recording_m": 0.05e-3},
+                         "track_recording_m": settings.recording_noise},
         "non_vehicle_tones_hz": {"bogie1_gyro_pitch": [settings.gyro_tone_hz]},
         "speed_dependent_wavelengths_m": {"sleeper": settings.line.sleeper_spacing,
                                           "rail_panel": settings.line.panel_length},
