@@ -16,6 +16,11 @@ A journey's absolute position comes from GPS and wanders by metres, half a wavel
 within +-``max_offset`` that maximises the cross-correlation of measured and simulated
 bogie responses is found, reported, and the run simulated again at that offset.
 
+The first and last ``4 x`` the band's longest wavelength (100 m for D1) of every section
+are left out of the comparison: there the zero-phase band-pass meets the section's ends and
+the simulation starts from static equilibrium. On a noise-free synthetic campaign that
+trim takes the bogie-acceleration NRMSE from 0.08-0.10 to 0.010-0.015.
+
 The comparison:
 
 * ``nrmse``: rms(simulated - measured) / rms(measured) in the band;
@@ -186,7 +191,12 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 300.0,
                 continue
             offset = _best_offset(meas, dict(zip([o.name for o in outputs], simulate_at(0.0))), max_offset)
             sim_all = dict(zip([o.name for o in outputs], simulate_at(offset)))
-            sim = {name: sim_all[name] - sim_all[name].mean() for name in meas}
+            keep = slice(int(4 * band[1] / STEP_M), grid.size - int(4 * band[1] / STEP_M))
+            if keep.stop - keep.start < int(min_length / 2 / STEP_M):
+                continue
+            grid = grid[keep]
+            meas = {name: m[keep] for name, m in meas.items()}
+            sim = {name: sim_all[name][keep] - sim_all[name][keep].mean() for name in meas}
             comps = [_compare(name, meas[name], sim[name], band) for name in meas]
             if comps:
                 runs.append(RunComparison(run.run_id, (float(s[0]), float(s[-1])), float(np.mean(v)), offset,
