@@ -63,6 +63,11 @@ def read_targets(path) -> dict[str, float]:
     return out
 
 
+def _convergence_range(nominal: float, low: float, high: float) -> float:
+    """Table 7's habit, 0.5 % of the nominal; of the range where the nominal is zero."""
+    return 0.005 * abs(nominal) if nominal else 0.005 * (high - low)
+
+
 def read_priors(path) -> tuple[SearchParameter, ...]:
     """Search ranges from a priors file; missing std / convergence_range follow Table 7's habit
     (a quarter of the range, and 0.5 % of the nominal)."""
@@ -78,10 +83,14 @@ def read_priors(path) -> tuple[SearchParameter, ...]:
                              path=path, key=name)
         if not isinstance(spec, dict) or not {"nominal", "low", "high"} <= set(spec):
             raise InputError("needs nominal, low, high", path=path, key=name)
+        for k in ("nominal", "low", "high", "std", "convergence_range"):
+            v = spec.get(k)
+            if k in spec and (isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)):
+                raise InputError(f"expected a finite number, got {v!r}", path=path, key=f"{name}.{k}")
         try:
             nominal, low, high = (float(spec[k]) for k in ("nominal", "low", "high"))
             std = float(spec.get("std", (high - low) / 4))
-            conv = float(spec.get("convergence_range", 0.005 * abs(nominal)))
+            conv = float(spec.get("convergence_range", _convergence_range(nominal, low, high)))
             params.append(SearchParameter(name, nominal, std, low, high, conv))
         except (TypeError, ValueError) as e:
             raise InputError(str(e), path=path, key=name) from None
@@ -120,6 +129,11 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
         raise InputError(f"unknown objective {objective!r}; have {', '.join(OBJECTIVES)}", key="--objective")
     optimiser, settings_type = OPTIMISERS[method]
     settings = settings_type() if settings is None else settings
+    if method == "pso":
+        open_ended = [p.name for p in search if p.low is None or p.high is None]
+        if open_ended:
+            raise InputError(f"a swarm needs a range for every parameter; none given for {', '.join(open_ended)} "
+                             "(give them with --priors)", key="--priors")
     names = tuple(p.name for p in search)
     family = LinearFamily.of_car(base.replace(**{p.name: p.mean for p in search}), names=names)
     fn = OBJECTIVES[objective]
@@ -136,11 +150,15 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
                         "frequencies_hz": {lbl: float(F[lbl][0]) for lbl in targets},
                         "objective": float(evaluate(x[None, :])[0]),
                         "iterations": int(getattr(r, "generations", getattr(r, "iterations", 0)))})
-    mean = np.mean([[run["parameters"][n] for n in names] for run in results], axis=0)
+    finite = [run for run in results if np.isfinite(run["objective"])]
+    if not finite:
+        raise InputError("no run found parameters with a finite objective: the targets or ranges give no "
+                         "model with every targeted mode", key="--targets")
+    mean = np.mean([[run["parameters"][n] for n in names] for run in finite], axis=0)
     low, high = bounds(search)
     refinement = None
     if refine_result:
-        r = refine(family, mean, targets, low, high)
+        r = refine(family, mean, targets, low, high, judge=lambda f, t: float(np.asarray(fn(f, t))))
         refinement = {"status": r.status, "improved": r.improved, "objective_start": r.objective_start,
                       "objective_end": r.objective_end, "max_relative_error": r.max_relative_error,
                       "start_parameters": dict(zip(names, map(float, mean)))}
@@ -160,7 +178,8 @@ DEFAULT_SEARCH = SEED_TABLE7
 def search_from_priors(priors) -> tuple[SearchParameter, ...]:
     """Search ranges from a campaign's [priors.NAME] (the searchable ones), Table 7's habits
     for the deviation (a quarter of the range) and convergence range (0.5 % of nominal)."""
-    return tuple(SearchParameter(name, p.nominal, (p.high - p.low) / 4, p.low, p.high, 0.005 * abs(p.nominal))
+    return tuple(SearchParameter(name, p.nominal, (p.high - p.low) / 4, p.low, p.high,
+                                 _convergence_range(p.nominal, p.low, p.high))
                  for name, p in priors.items() if name in SEARCHABLE)
 
 

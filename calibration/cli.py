@@ -151,6 +151,8 @@ def cmd_calibrate(args) -> int:
         raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
     if (args.campaign is None) == (args.targets is None):
         raise InputError("give either a CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
+    if args.campaign is not None and args.priors is not None:
+        raise InputError("a campaign brings its own [priors.NAME]; --priors goes with --targets", key="--priors")
     if args.campaign is not None:
         result, ident = calibrate_campaign(open_campaign(args.campaign), method=args.method, objective=args.objective,
                                            runs=args.runs, seed=args.seed, refine_result=args.refine,
@@ -185,6 +187,9 @@ def cmd_validate(args) -> int:
         params = json.loads(path.read_text())["parameters"]
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise InputError(f"not a calibration result with 'parameters': {e}", path=path) from None
+    if not isinstance(params, dict):
+        raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", path=path,
+                         key="parameters")
     try:
         p = CarParameters.from_mapping(params)
     except ParameterError as e:

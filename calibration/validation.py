@@ -33,6 +33,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import warnings
+
 import numpy as np
 import scipy.signal
 
@@ -62,6 +64,7 @@ class RunComparison:
     distance_range: tuple[float, float]  # [m] of the carbody centre
     mean_speed: float  # [m/s]
     offset: float  # [m] added to the run's distance axis to match the recording
+    offset_at_limit: bool  # the best offset sits on the search limit: synchronisation is doubtful
     channels: tuple[ChannelComparison, ...]
     distance: np.ndarray = field(repr=False)
     measured: dict = field(repr=False)
@@ -73,6 +76,7 @@ class ValidationResult:
     track: str
     band_m: tuple[float, float]
     runs: tuple[RunComparison, ...]
+    skipped: tuple = ()  # (run, channel, reason) left out of the comparison
 
     def summary(self) -> dict:
         """Per channel: median over runs of each metric."""
@@ -88,8 +92,9 @@ class ValidationResult:
 
     def to_json(self) -> dict:
         return {"track": self.track, "band_m": list(self.band_m), "channels": self.summary(),
+                "skipped": [{"run": r, "channel": c, "reason": why} for r, c, why in self.skipped],
                 "runs": [{"run": r.run_id, "distance_range_m": list(r.distance_range), "mean_speed_m_s": r.mean_speed,
-                          "offset_m": r.offset,
+                          "offset_m": r.offset, "offset_at_limit": r.offset_at_limit,
                           "channels": {c.channel: {"nrmse": c.nrmse, "psd_log_error_db": c.psd_log_error_db,
                                                    "residual_rms": c.residual_rms, "measured_rms": c.measured_rms}
                                        for c in r.channels}} for r in self.runs]}
@@ -133,7 +138,7 @@ def _best_offset(meas: dict, sim: dict, max_offset: float) -> float:
     return float(-(lags[k] + shift) * STEP_M)
 
 
-def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 300.0, max_offset: float = 10.0,
+def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0, max_offset: float = 10.0,
              progress=None) -> ValidationResult:
     meta = campaign.meta
     tracks = [t for t in campaign.tracks() if t.band in BANDS_M]
@@ -141,6 +146,16 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 300.0,
         raise CampaignError("no track recording filtered to D1 or D2 in track/: nothing to validate over",
                             path=campaign.root / "track")
     track = tracks[0]
+    if len(tracks) > 1:
+        warnings.warn(f"{campaign.root / 'track'}: validating over {track.path.name} only; "
+                      f"{', '.join(t.path.name for t in tracks[1:])} not used", stacklevel=2)
+    geometry = {"L_v": meta.geometry.get("bogie_semi_spacing"), "L_b": meta.geometry.get("semi_wheelbase")}
+    geometry = {k: v for k, v in geometry.items() if v is not None and abs(v - getattr(p, k)) > 1e-6}
+    if geometry:  # the sensors' positions refer to the campaign's measured geometry
+        warnings.warn(f"{campaign.root / 'campaign.toml'}: the calibration's geometry differs from the campaign's "
+                      f"[vehicle]; using the campaign's {geometry}", stacklevel=2)
+        p = p.replace(**geometry)
+    trim = 4 * BANDS_M[track.band][1]
     band = BANDS_M[track.band]
     slope = np.gradient(track.level, track.distance)
     xw = wheelset_positions(p)
@@ -153,7 +168,7 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 300.0,
         raise CampaignError("no bogie-1 vertical accelerometer or pitch gyro to compare with", path=campaign.root /
                             "campaign.toml", key="sensors")
     ss = state_space(build_car(p), outputs)
-    runs = []
+    runs, skipped = [], []
     for run in campaign.iter_runs():
         d = _distance_axis(run.distance, run.speed, run.time)
         if run.speed is not None:
@@ -190,24 +205,30 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 300.0,
             if not meas:
                 continue
             offset = _best_offset(meas, dict(zip([o.name for o in outputs], simulate_at(0.0))), max_offset)
+            at_limit = abs(offset) >= max_offset - STEP_M
             sim_all = dict(zip([o.name for o in outputs], simulate_at(offset)))
-            keep = slice(int(4 * band[1] / STEP_M), grid.size - int(4 * band[1] / STEP_M))
-            if keep.stop - keep.start < int(min_length / 2 / STEP_M):
+            keep = slice(int(trim / STEP_M), grid.size - int(trim / STEP_M))
+            if keep.stop - keep.start < int(min_length / STEP_M):
                 continue
             grid = grid[keep]
             meas = {name: m[keep] for name, m in meas.items()}
             sim = {name: sim_all[name][keep] - sim_all[name][keep].mean() for name in meas}
+            for name in list(meas):
+                if np.sqrt(np.mean(meas[name] ** 2)) <= 1e-6 * max(np.sqrt(np.mean(sim[name] ** 2)), 1e-300):
+                    skipped.append((run.run_id, name, "no measured content in the band (a stuck or dead sensor?)"))
+                    del meas[name], sim[name]
             comps = [_compare(name, meas[name], sim[name], band) for name in meas]
             if comps:
                 runs.append(RunComparison(run.run_id, (float(s[0]), float(s[-1])), float(np.mean(v)), offset,
-                                          tuple(comps), grid, meas, sim))
+                                          at_limit, tuple(comps), grid, meas, sim))
                 if progress:
                     progress(f"validate: {run.run_id} over {s[-1] - s[0]:.0f} m at {np.mean(v):.1f} m/s, "
                              f"synchronised by {offset:+.2f} m")
     if not runs:
-        raise CampaignError(f"no run covers at least {min_length:g} m of the track recording {track.path.name}",
-                            path=track.path)
-    return ValidationResult(track.name, band, tuple(runs))
+        raise CampaignError(f"no run covers at least {min_length + 2 * trim:g} m of the track recording "
+                            f"{track.path.name} with every wheelset ({min_length:g} m compared plus {trim:g} m left "
+                            "out at each end) and usable sensors", path=track.path)
+    return ValidationResult(track.name, band, tuple(runs), tuple(skipped))
 
 
 def plot_validation(result: ValidationResult, path) -> Path:

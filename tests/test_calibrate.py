@@ -155,3 +155,73 @@ def test_validate_refuses_a_file_that_is_not_a_calibration(synthetic_campaign, t
     bad.write_text('{"parameters": {"m_v": -1}}')
     assert main(["validate", str(root), "--calibration", str(bad), "--out", str(tmp_path / "v.json")]) == 2
     assert "bad.json" in capsys.readouterr().err
+
+
+# ------------------------------------------------ regressions found in review
+def test_refinement_is_judged_by_the_users_objective_when_targets_are_unreachable():
+    from calibration.optimisers.cross_entropy import SEED_TABLE7
+    from calibration.optimisers.objectives import max_relative_error
+
+    unreachable = {"carbody_bounce": 1.6, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}
+    for objective in ("sse", "max_rel"):
+        res = calibrate_car(unreachable, SEED_TABLE7, runs=1, seed=0, objective=objective, refine_result=True)
+        ref = res.refinement
+        assert ref["objective_end"] <= ref["objective_start"], objective
+    # and the reported fit agrees with the objective's verdict
+    F = {r["label"]: np.array([r["model_hz"]]) for r in res.fit}
+    assert float(max_relative_error(F, unreachable)[0]) == pytest.approx(ref["objective_end"], rel=1e-9)
+
+
+def test_swarm_without_ranges_for_every_parameter_is_an_input_error(tmp_path, capsys):
+    targets = tmp_path / "t.toml"
+    targets.write_text('[[targets]]\nlabel = "carbody_bounce"\nfrequency_hz = 1.0\n')
+    assert main(["calibrate", "--targets", str(targets), "--method", "pso", "--out", str(tmp_path / "c.json")]) == 2
+    assert "J_v" in capsys.readouterr().err
+
+
+def test_priors_with_infinite_or_textual_numbers_are_refused(tmp_path, capsys):
+    targets = tmp_path / "t.toml"
+    targets.write_text('[[targets]]\nlabel = "carbody_bounce"\nfrequency_hz = 1.0\n')
+    for body, key in (("[m_v]\nnominal = 38000.0\nlow = 36000.0\nhigh = inf\n", "m_v.high"),
+                      ('[m_v]\nnominal = "38000"\nlow = 36000.0\nhigh = 40000.0\n', "m_v.nominal")):
+        priors = tmp_path / "p.toml"
+        priors.write_text(body)
+        assert main(["calibrate", "--targets", str(targets), "--priors", str(priors), "--out",
+                     str(tmp_path / "c.json")]) == 2
+        assert key in capsys.readouterr().err
+
+
+def test_calibration_file_whose_parameters_are_not_a_mapping_is_refused(synthetic_campaign, tmp_path, capsys):
+    root, _ = synthetic_campaign
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"parameters": null}')
+    assert main(["validate", str(root), "--calibration", str(bad), "--out", str(tmp_path / "v.json")]) == 2
+    assert "must map names to values" in capsys.readouterr().err
+
+
+def test_campaign_calibration_refuses_a_separate_priors_file(synthetic_campaign, tmp_path, capsys):
+    root, _ = synthetic_campaign
+    assert main(["calibrate", str(root), "--priors", "p.toml", "--out", str(tmp_path / "c.json")]) == 2
+    assert "--priors goes with --targets" in capsys.readouterr().err
+
+
+def test_a_stuck_gyro_is_skipped_with_a_reason_not_reported_as_infinite_error(synthetic_campaign, tmp_path, capsys):
+    import shutil
+
+    import pandas as pd
+
+    root, truth = synthetic_campaign
+    stuck = tmp_path / "stuck"
+    shutil.copytree(root, stuck)
+    for p in (stuck / "runs").glob("*.parquet"):
+        df = pd.read_parquet(p)
+        df["bogie1_gyro_pitch"] = 0.0
+        df.to_parquet(p)
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"parameters": truth["parameters"]}))
+    out = tmp_path / "v.json"
+    assert main(["validate", str(stuck), "--calibration", str(cal), "--quiet", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert "bogie1_gyro_pitch" not in data["channels"] and "bogie1_acc_z" in data["channels"]
+    assert all("stuck or dead" in s["reason"] for s in data["skipped"]) and data["skipped"]
+    capsys.readouterr()

@@ -18,6 +18,7 @@ import tomli_w
 
 from calibration.cli import main
 from calibration.data.campaign import CampaignWriter, open_campaign
+from calibration.data.errors import CampaignError
 from calibration.data.units import STANDARD_GRAVITY
 
 from conftest import tiny_columns, tiny_meta
@@ -342,3 +343,13 @@ def test_negative_seed_is_an_argument_error(capsys):
     with pytest.raises(SystemExit) as e:
         main(["synth", "in-service", "x", "--seed", "-1"])
     assert e.value.code == 2 and "seed must be >= 0" in capsys.readouterr().err
+
+
+def test_track_recording_with_a_single_row_is_refused(tiny_campaign):
+    from calibration.data.campaign import read_track_file
+
+    (tiny_campaign / "track").mkdir()
+    path = tiny_campaign / "track" / "t.csv"
+    path.write_text('# band = "D1"\ndistance,level\n100.0,0.001\n')
+    with pytest.raises(CampaignError, match="at least two rows"):
+        read_track_file(path)

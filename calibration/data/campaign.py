@@ -480,6 +480,8 @@ def read_track_file(path: Path) -> TrackRecording:
         if c not in cols:
             raise CampaignError(f"missing required column '{c}'", path=path, column=c)
     d, z = cols["distance"], cols["level"]
+    if d.size < 2:
+        raise CampaignError(f"a track recording needs at least two rows, found {d.size}", path=path)
     for c, v in (("distance", d), ("level", z)):
         if not np.isfinite(v).all():
             row = int(np.argmax(~np.isfinite(v)))

@@ -25,8 +25,11 @@ class SearchParameter:
     convergence_range: float
 
     def __post_init__(self):
-        if not (np.isfinite(self.mean) and self.std > 0 and self.convergence_range > 0):
-            raise ValueError(f"{self.name}: mean must be finite, std and convergence range > 0")
+        if not (np.isfinite(self.mean) and np.isfinite(self.std) and self.std > 0 and self.convergence_range > 0):
+            raise ValueError(f"{self.name}: mean and std must be finite, std and convergence range > 0")
+        for bound in (self.low, self.high):
+            if bound is not None and not np.isfinite(bound):
+                raise ValueError(f"{self.name}: a range limit must be finite (leave it out for none)")
         if self.low is not None and self.high is not None and not self.low < self.high:
             raise ValueError(f"{self.name}: low = {self.low} must be below high = {self.high} (infeasible bounds)")
         lo = 0.0 if self.low is None else self.low

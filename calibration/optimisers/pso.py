@@ -46,8 +46,9 @@ def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.r
                    settings: PSOSettings = PSOSettings()) -> PSOResult:
     names = tuple(p.name for p in parameters)
     low, high = bounds(parameters)
-    if not np.all(np.isfinite(high)) or any(p.low is None for p in parameters):
-        missing = [p.name for p in parameters if p.low is None or p.high is None]
+    if not (np.all(np.isfinite(high)) and np.all(np.isfinite(low))) or any(p.low is None for p in parameters):
+        missing = [p.name for p in parameters if p.low is None or p.high is None
+                   or not np.isfinite(p.low) or not np.isfinite(p.high)]
         raise ValueError(f"a swarm needs a finite range for every parameter; none given for {', '.join(missing)}")
     span = high - low
     n, d = settings.particles, len(parameters)

@@ -11,7 +11,10 @@ parameter bounds (the search ranges; e.g. the carbody mass within the load build
 seed's Table 5), lambda_i > 0. Objective: the sum of squared relative frequency errors,
 sum_i (sqrt(lambda_i) / (2 pi f_i) - 1)^2. It starts at the global optimum with the
 eigenpairs of the modes labelled as the targets there, and never returns a worse objective
-than its start: if IPOPT ends worse (or fails), the start is returned, and it says so.
+than its start, judged by the caller's objective (``judge``, default the NLP's own): if
+IPOPT ends worse by that measure (or fails), the start is returned, and it says so. The
+end point is judged on the labelled frequencies of the model there, so a tracked eigenpair
+that drifted onto another mode cannot pass for a fit.
 """
 from __future__ import annotations
 
@@ -35,10 +38,14 @@ class RefineResult:
     improved: bool  # False: the start was kept
 
 
-def _relative_objective(family: LinearFamily, p: np.ndarray, targets: dict) -> tuple[float, dict]:
+def _relative_sse(f: dict, targets: dict) -> float:
+    return float(sum((f[k] / v - 1) ** 2 for k, v in targets.items()))
+
+
+def _judged(family: LinearFamily, p: np.ndarray, targets: dict, judge) -> tuple[float, dict]:
     F = family.frequencies(p[None, :])
     f = {k: float(F[k][0]) for k in targets}
-    return float(sum((f[k] / v - 1) ** 2 for k, v in targets.items())), f
+    return float(judge(f, targets)), f
 
 
 def _labelled_eigenpairs(family: LinearFamily, p: np.ndarray, labels) -> list[tuple[float, np.ndarray]]:
@@ -62,7 +69,9 @@ def _labelled_eigenpairs(family: LinearFamily, p: np.ndarray, labels) -> list[tu
 
 
 def refine(family: LinearFamily, p_start: np.ndarray, targets: dict, low: np.ndarray, high: np.ndarray, *,
-           tol: float = 1e-14, max_iter: int = 500) -> RefineResult:
+           judge=None, tol: float = 1e-14, max_iter: int = 500) -> RefineResult:
+    """``judge(frequencies: dict, targets: dict) -> float`` decides what "worse" means."""
+    judge = _relative_sse if judge is None else judge
     p_start = np.asarray(p_start, float)
     labels = tuple(targets)
     n = len(family.dofs)
@@ -95,9 +104,8 @@ def refine(family: LinearFamily, p_start: np.ndarray, targets: dict, low: np.nda
     sol = solver(x0=z0, lbx=lbz, ubx=ubz, lbg=np.zeros(ng), ubg=np.zeros(ng))
     status = solver.stats()["return_status"]
     p_end = np.clip(np.array(sol["x"][:d]).ravel() * p_start, low, high)
-    obj_start, f_start = _relative_objective(family, p_start, targets)
-    obj_end, f_end = _relative_objective(family, p_end, targets)
-    # the eigenpairs the NLP tracked must still be the targeted (labelled) modes
+    obj_start, f_start = _judged(family, p_start, targets, judge)
+    obj_end, f_end = _judged(family, p_end, targets, judge)
     improved = bool(np.isfinite(obj_end) and obj_end < obj_start)
     if not improved:
         p_end, obj_end, f_end = p_start, obj_start, f_start
