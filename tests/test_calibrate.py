@@ -149,12 +149,18 @@ def test_validate_command_with_the_truth_leaves_little_and_reports_per_channel(s
     capsys.readouterr()
 
 
-def test_validate_refuses_a_file_that_is_not_a_calibration(synthetic_campaign, tmp_path, capsys):
+@pytest.mark.parametrize("content, message", [
+    ('{"parameters": {"m_v": -1}}', "missing parameter"),
+    ('{"parameters": null}', "must map names to values"),
+    ('{"fit": []}', "not a calibration result"),
+])
+def test_validate_refuses_a_file_that_is_not_a_calibration(synthetic_campaign, tmp_path, capsys, content, message):
     root, _ = synthetic_campaign
     bad = tmp_path / "bad.json"
-    bad.write_text('{"parameters": {"m_v": -1}}')
+    bad.write_text(content)
     assert main(["validate", str(root), "--calibration", str(bad), "--out", str(tmp_path / "v.json")]) == 2
-    assert "bad.json" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "bad.json" in err and message in err
 
 
 # ------------------------------------------------ regressions found in review
@@ -189,14 +195,6 @@ def test_priors_with_infinite_or_textual_numbers_are_refused(tmp_path, capsys):
         assert main(["calibrate", "--targets", str(targets), "--priors", str(priors), "--out",
                      str(tmp_path / "c.json")]) == 2
         assert key in capsys.readouterr().err
-
-
-def test_calibration_file_whose_parameters_are_not_a_mapping_is_refused(synthetic_campaign, tmp_path, capsys):
-    root, _ = synthetic_campaign
-    bad = tmp_path / "bad.json"
-    bad.write_text('{"parameters": null}')
-    assert main(["validate", str(root), "--calibration", str(bad), "--out", str(tmp_path / "v.json")]) == 2
-    assert "must map names to values" in capsys.readouterr().err
 
 
 def test_campaign_calibration_refuses_a_separate_priors_file(synthetic_campaign, tmp_path, capsys):
