@@ -13,7 +13,7 @@ import os
 import shutil
 from pathlib import Path
 
-from .calibrate import calibrate_car, search_from_priors
+from .calibrate import calibrate_car, mode_uncertainties, search_from_priors
 from .data.campaign import open_campaign, write_json_atomic
 from .identification.in_service import RIGID_LABELS, identify_in_service, prior_parameters
 from .identification.plots import plot_identification, plot_spectra
@@ -49,7 +49,7 @@ def run_demo(out: Path, *, progress=None) -> Path:
     say("3/4 calibrating the 2D car to the identified modes (Cross-Entropy, CasADi refinement)")
     targets = {m.label: m.frequency_hz for m in result.modes}
     calibration = calibrate_car(targets, search_from_priors(campaign.meta.priors), base=prior_parameters(campaign),
-                                runs=3, seed=DEMO_SEED, refine_result=True, sigma_f=0.01)
+                                runs=3, seed=DEMO_SEED, refine_result=True, sigma_f=mode_uncertainties(result.modes))
     write_json_atomic(out / "calibration.json", calibration.to_json())
     say("4/5 validating over the track recording")
     validation = validate(campaign, calibration.parameters)

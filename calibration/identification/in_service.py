@@ -71,6 +71,7 @@ class IdentifiedMode:
     source: str  # which analysis / FRF
     fdd_peak_hz: float | None  # the seed-faithful FDD estimate, where a peak was found
     prior_hz: float | None  # the prior model's frequency, for reference
+    frequency_std_hz: float | None = None  # standard error from the spread over segment parts
 
     def to_json(self) -> dict:
         return dict(self.__dict__)
@@ -280,44 +281,17 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
         return max(cands, key=lambda x: x[1]) if cands else None
 
     modes: list[IdentifiedMode] = []
-    frfs: dict[str, FRF] = {}
+    frfs: dict = {}
     if have_io:
         r = fdd.results[IO_ANALYSIS]
-        f = r.frequency
-        H, coh = h1(r.csd, [2], [0, 1])
-        Hp, cohp = h1(r.csd, [4], [3])
-        Hp_acc = Hp[:, 0, 0] * (1j * 2 * np.pi * f)  # pitch rate -> pitch acceleration
-        frfs["own_rail"] = FRF("own_rail", f, H[:, 0, 0], coh[:, 0],
-                               "bogie-1 centre acceleration / rail acceleration under bogie 1")
-        frfs["pitch"] = FRF("pitch", f, Hp_acc, cohp[:, 0],
-                            "bogie-1 pitch acceleration / rail pitch acceleration under bogie 1")
-        # Bins are weighted by the inverse standard deviation of the two-input estimate,
-        # which grows as 1 / sqrt(1 - gamma_ab^2): below ~0.6 Hz the delay 2 L_v / v turns the
-        # phase too little across speeds to tell the two rails apart (measured on seed 1:
-        # carbody bounce -1.96 % unweighted, -0.62 % weighted, noise-free data).
-        G = r.csd
-        separability = np.clip(1 - np.abs(G[:, 0, 1]) ** 2 / np.real(G[:, 0, 0] * G[:, 1, 1]), 0.0, 1.0)
-        gate = lambda c: (c >= settings.min_coherence).astype(float)  # noqa: E731
-        w2 = gate(coh[:, 0]) * np.sqrt(separability)
-        frfs["trailing_rail"] = FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
-                                    "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)")
-        cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles, weights=w2), 2)
-        signs = {p: _static_sign(p, f, H[:, 0, 1]) for p in cb}
-        bounce = [p for p in cb if signs[p] > 0]
-        pitch = [p for p in cb if signs[p] < 0]
-        if len(bounce) == 1 and len(pitch) == 1:
-            cb_labels = {bounce[0]: "carbody_bounce", pitch[0]: "carbody_pitch"}
-        else:  # signs inconclusive: frequency order of the prior model
-            order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
-            cb_labels = dict(zip(cb, order))
-        fitted = {lbl: (p, "trailing_rail") for p, lbl in cb_labels.items()}
-        bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles, weights=w2), 1)
-        bp = _strongest(fit_poles(f, Hp_acc, settings.bogie_band, 1 + settings.extra_poles,
-                                  weights=gate(cohp[:, 0])), 1)
-        if bb:
-            fitted["bogie_bounce"] = (bb[0], "own_rail")
-        if bp:
-            fitted["bogie_pitch"] = (bp[0], "pitch")
+        fitted, frfs = _fit_input_output(r.frequency, r.csd, settings, prior_f)
+        # the same fit on interleaved parts of the segments: their spread is the standard
+        # error of the full estimate (batch means, divided by sqrt(number of parts))
+        spread: dict[str, list[float]] = {}
+        for part in r.csd_parts:
+            part_fit, _ = _fit_input_output(r.frequency, part, settings, prior_f)
+            for lbl, (p, _src) in part_fit.items():
+                spread.setdefault(lbl, []).append(p.frequency_hz)
         for lbl in RIGID_LABELS:
             if lbl not in fitted:
                 continue
@@ -326,8 +300,10 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             near = [fr for name, pk in peaks.items() for fr, _ in pk
                     if abs(fr / p.frequency_hz - 1) < 0.1 and fdd.results[name].analysis.role == role]
             fdd_hz = min(near, key=lambda fr: abs(fr - p.frequency_hz)) if near else None
+            est = spread.get(lbl, [])
+            std = float(np.std(est, ddof=1) / np.sqrt(len(est))) if len(est) >= 2 else None
             modes.append(IdentifiedMode(lbl, p.frequency_hz, p.damping_ratio, p.damped_frequency_hz,
-                                        "input_output_fit", src, fdd_hz, prior_f.get(lbl)))
+                                        "input_output_fit", src, fdd_hz, prior_f.get(lbl), std))
     else:
         est = {"bogie_pitch": fdd_estimate("bogie_pitch", settings.bogie_band),
                "bogie_bounce": fdd_estimate("bogie_bounce", settings.bogie_band)}
@@ -346,6 +322,46 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
                                    frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs),
                                    collector.psd_by_speed())
+
+
+def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, prior_f: dict):
+    """Modes from the input-output CSD matrix (channels: rail bounce under bogie 1, the same
+    rail under bogie 2, bogie-1 centre acceleration, rail pitch, bogie-1 pitch rate).
+    Returns ({label: (Pole, source)}, {name: FRF})."""
+    H, coh = h1(G, [2], [0, 1])
+    Hp, cohp = h1(G, [4], [3])
+    Hp_acc = Hp[:, 0, 0] * (1j * 2 * np.pi * f)  # pitch rate -> pitch acceleration
+    frfs = {
+        "own_rail": FRF("own_rail", f, H[:, 0, 0], coh[:, 0],
+                        "bogie-1 centre acceleration / rail acceleration under bogie 1"),
+        "pitch": FRF("pitch", f, Hp_acc, cohp[:, 0], "bogie-1 pitch acceleration / rail pitch acceleration under bogie 1"),
+        "trailing_rail": FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
+                             "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)"),
+    }
+    # Bins are weighted by the inverse standard deviation of the two-input estimate, which
+    # grows as 1 / sqrt(1 - gamma_ab^2): below ~0.6 Hz the delay 2 L_v / v turns the phase
+    # too little across speeds to tell the two rails apart (measured on seed 1: carbody
+    # bounce -1.96 % unweighted, -0.62 % weighted, noise-free data).
+    separability = np.clip(1 - np.abs(G[:, 0, 1]) ** 2 / np.real(G[:, 0, 0] * G[:, 1, 1]), 0.0, 1.0)
+    gate = lambda c: (c >= settings.min_coherence).astype(float)  # noqa: E731
+    w2 = gate(coh[:, 0]) * np.sqrt(separability)
+    cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles, weights=w2), 2)
+    signs = {p: _static_sign(p, f, H[:, 0, 1]) for p in cb}
+    bounce = [p for p in cb if signs[p] > 0]
+    pitch = [p for p in cb if signs[p] < 0]
+    if len(bounce) == 1 and len(pitch) == 1:
+        cb_labels = {bounce[0]: "carbody_bounce", pitch[0]: "carbody_pitch"}
+    else:  # signs inconclusive: frequency order of the prior model
+        order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
+        cb_labels = dict(zip(cb, order))
+    fitted = {lbl: (p, "trailing_rail") for p, lbl in cb_labels.items()}
+    bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles, weights=w2), 1)
+    bp = _strongest(fit_poles(f, Hp_acc, settings.bogie_band, 1 + settings.extra_poles, weights=gate(cohp[:, 0])), 1)
+    if bb:
+        fitted["bogie_bounce"] = (bb[0], "own_rail")
+    if bp:
+        fitted["bogie_pitch"] = (bp[0], "pitch")
+    return fitted, frfs
 
 
 def _run_report(run) -> dict:

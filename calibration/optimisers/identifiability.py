@@ -12,8 +12,9 @@ S = U diag(s) V^T:
   remaining right singular vectors, together with the d - m directions four frequencies
   cannot reach in six parameters, are the undetermined directions: moving the parameters
   along one of them by a relative step changes no targeted frequency to first order;
-* a relative uncertainty ``sigma_f`` of the measured frequencies becomes a 95 % interval of
-  +-1.96 sigma_f / s_k on the coordinate v_k^T log(p / p*) of each determined direction k
+* relative uncertainties ``sigma_f`` of the measured frequencies (one for all, or one per
+  mode) weight the rows of S; with the weighted S = U diag(s) V^T, a 95 % interval of
+  +-1.96 / s_k follows on the coordinate v_k^T log(p / p*) of each determined direction k
   (the Gauss-Newton linearisation at the optimum);
 * parameters within ``bound_tol`` of a range end are flagged (the seed's m_v).
 """
@@ -71,7 +72,7 @@ class Identifiability:
     undetermined: tuple[Direction, ...]
     intervals: tuple[tuple[float, float], ...]  # 95 % on each determined coordinate v^T log(p/p*)
     at_bound: tuple[str, ...]
-    sigma_f: float
+    sigma_f: tuple[float, ...]  # relative, per mode
 
     def to_json(self) -> dict:
         return {
@@ -83,7 +84,8 @@ class Identifiability:
                                        "interval_95_log": list(iv)} for d, iv in zip(self.determined, self.intervals)],
             "undetermined_directions": [{"singular_value": d.singular_value, "vector": d.vector.round(4).tolist(),
                                          "in_words": d.describe()} for d in self.undetermined],
-            "at_bound": list(self.at_bound), "frequency_uncertainty_relative": self.sigma_f,
+            "at_bound": list(self.at_bound),
+            "frequency_uncertainty_relative": dict(zip(self.labels, self.sigma_f)),
             "summary": self.summary(),
         }
 
@@ -102,17 +104,21 @@ class Identifiability:
         return [lo <= d.vector @ x <= hi for d, (lo, hi) in zip(self.determined, self.intervals)]
 
 
-def identifiability(family: LinearFamily, p: np.ndarray, labels: tuple[str, ...], *, sigma_f: float = 0.005,
+def identifiability(family: LinearFamily, p: np.ndarray, labels: tuple[str, ...], *, sigma_f=0.005,
                     low=None, high=None, rtol: float = 1e-3, bound_tol: float = 0.005) -> Identifiability:
+    """``sigma_f``: relative frequency uncertainty, a number for every mode or one per label."""
     p = np.asarray(p, float)
     f, J = frequency_sensitivities(family, p, labels)
     S = J * p[None, :] / f[:, None]
-    U, s, Vt = np.linalg.svd(S, full_matrices=True)
+    sigma = np.broadcast_to(np.asarray(sigma_f, float), (len(labels),)).copy()
+    if not np.all(sigma > 0):
+        raise ValueError(f"frequency uncertainties must be > 0, got {sigma}")
+    U, s, Vt = np.linalg.svd(S / sigma[:, None], full_matrices=True)
     rank = int(np.sum(s > rtol * s[0]))
     names = family.names
     determined = tuple(Direction(float(s[k]), Vt[k], names) for k in range(rank))
     undetermined = tuple(Direction(float(s[k]) if k < s.size else 0.0, Vt[k], names) for k in range(rank, len(names)))
-    intervals = tuple((-1.96 * sigma_f / d.singular_value, 1.96 * sigma_f / d.singular_value) for d in determined)
+    intervals = tuple((-1.96 / d.singular_value, 1.96 / d.singular_value) for d in determined)
     at_bound = []
     if low is not None and high is not None:
         for n, v, lo, hi in zip(names, p, low, high):
@@ -123,4 +129,4 @@ def identifiability(family: LinearFamily, p: np.ndarray, labels: tuple[str, ...]
                 elif hi - v <= bound_tol * span:
                     at_bound.append(f"{n} (upper)")
     return Identifiability(names, tuple(labels), S, s, rank, determined, undetermined, intervals, tuple(at_bound),
-                           sigma_f)
+                           tuple(float(x) for x in sigma))
