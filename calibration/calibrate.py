@@ -199,9 +199,8 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
                        refine_result: bool = True, progress=None):
     """Identify the campaign's modes, then calibrate the car to them within its priors.
 
-    The identifiability intervals use, per mode, the identification's standard error (the
-    spread of the estimate over interleaved parts of the segments) combined with a
-    systematic floor of 0.5 %: the largest bias of the input-output estimate seen on
+    The identifiability intervals use, per mode, the identification's standard error (a
+    delete-one-journey jackknife) combined with a systematic floor of 0.5 %: the largest bias of the input-output estimate seen on
     noise-free synthetic data (carbody bounce -0.62 %, seed 1; a single bogie sees both the
     in-phase and the anti-phase bogie bounce, 0.1-0.2 %), which no spread reveals."""
     from .data.errors import CampaignError

@@ -226,7 +226,7 @@ class FDDResult:
     csd: np.ndarray  # (n_freq, n_ch, n_ch), summed normalised CSD
     n_used: int
     speeds: np.ndarray  # [m/s] mean speed of each used segment
-    csd_parts: tuple = ()  # the same sum in interleaved parts (for standard errors)
+    csd_parts: dict = field(default_factory=dict)  # run id -> that run's share of the sum (jackknife)
 
     def first_singular_vector(self, f: float) -> np.ndarray:
         i = int(np.argmin(np.abs(self.frequency - f)))
@@ -373,26 +373,22 @@ def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, sett
     return (xr[:, a:b], fs_a, speed), ""
 
 
-N_PARTS = 4  # interleaved partial sums, for the spread of estimates (batch means)
-
-
 class _Sum:
     """Running sums of one analysis: singular values and CSD matrices over segments, the
-    CSD also in ``N_PARTS`` interleaved partial sums (segment k goes to part k mod N_PARTS)."""
+    CSD also per run (journey), for delete-one-journey jackknife estimates of spread."""
 
     def __init__(self, analysis: Analysis):
         self.analysis = analysis
         self.sv = None
         self.G = None
-        self.parts: list = [None] * N_PARTS
+        self.parts: dict = {}
         self.speeds: list[float] = []
 
-    def add(self, G: np.ndarray, speed: float) -> None:
+    def add(self, G: np.ndarray, speed: float, run_id: str) -> None:
         sv = np.linalg.svd(G, compute_uv=False, hermitian=True).T  # (n_ch, n_f)
         self.sv = sv if self.sv is None else self.sv + sv
         self.G = G.copy() if self.G is None else self.G + G
-        k = len(self.speeds) % N_PARTS
-        self.parts[k] = G.copy() if self.parts[k] is None else self.parts[k] + G
+        self.parts[run_id] = G.copy() if run_id not in self.parts else self.parts[run_id] + G
         self.speeds.append(speed)
 
 
@@ -442,7 +438,7 @@ class SegmentalFDDAccumulator:
                 G = csd_from_frames(X[:, :, band], scale, self.rows[a.name], full_spectrum=False)
                 if st.normalise:
                     G = G / (np.real(np.trace(G, axis1=1, axis2=2)).sum() * (f[1] - f[0]))
-                self.sums[a.name].add(G, speed)
+                self.sums[a.name].add(G, speed, run.run_id)
             self.outcomes[k] = SegmentOutcome(seg, True, f"redrawn {tries} times" if tries else "", speed)
             used += 1
         return used
@@ -453,8 +449,7 @@ class SegmentalFDDAccumulator:
             s = self.sums[a.name]
             if s.sv is None:
                 continue
-            parts = tuple(p for p in s.parts if p is not None)
-            results[a.name] = FDDResult(a, self.freq, s.sv, s.G, len(s.speeds), np.array(s.speeds), parts)
+            results[a.name] = FDDResult(a, self.freq, s.sv, s.G, len(s.speeds), np.array(s.speeds), dict(s.parts))
         return SegmentalFDD(self.settings, results, tuple(self.outcomes[k] for k in sorted(self.outcomes)))
 
 
