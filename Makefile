@@ -24,8 +24,10 @@ test: $(STAMP)
 	$(PY) -m pytest -q tests; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "pytest collected no tests" >&2; exit 1; fi; exit $$rc
 
+# Benchmarks print their figures; bench_fdd synthesises its 30 x 90 km campaign once (about 1.5 GB).
 bench: $(STAMP)
 	$(PY) scripts/bench_fdd.py
+	$(PY) scripts/bench_calibrate_car.py
 
 clean:
 	rm -rf $(VENV) demo_output build *.egg-info
