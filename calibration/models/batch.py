@@ -19,6 +19,7 @@ from .car2d import _GROUPS, build_car
 from .parameters import CarParameters
 
 MASS_NAMES = ("m_v", "J_v", "m_b", "J_b")
+LABELS = tuple(_GROUPS)  # mode labels, in the order of the label indices of LinearFamily.modes
 STIFFNESS_NAMES = ("k_p", "k_s")
 
 
@@ -60,6 +61,28 @@ class LinearFamily:
         K = self.K0 + np.einsum("ni,ijk->njk", P, np.stack([self.K_unit[n] for n in self.names]))
         return M, K
 
+    def modes(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Batched undamped modes of parameter rows P: frequencies f (N, n) [Hz] ascending,
+        mass-normalised shapes phi (N, n, n) (columns, phi^T M phi = 1) and the label of
+        each mode (N, n) as an index into ``LABELS``, by kinetic energy as ``undamped_modes``."""
+        M, K = self.matrices(P)
+        d = np.sqrt(np.einsum("njj->nj", M))
+        w2, V = np.linalg.eigh(K / d[:, :, None] / d[:, None, :])
+        f = np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi)
+        energy = V**2  # of the M^1/2-scaled shapes: kinetic energy fraction per DOF
+        scores = np.stack([energy[:, [self.dofs.index(x) for x in dofs if x in self.dofs], :].sum(axis=1)
+                           for dofs in _GROUPS.values()], axis=1)  # (N, n_groups, n_modes)
+        return f, V / d[:, :, None], np.argmax(scores, axis=1)
+
+    def labelled_mode(self, p: np.ndarray, label: str) -> tuple[float, np.ndarray]:
+        """(w^2 [rad^2/s^2], mass-normalised shape) of the lowest mode labelled ``label`` at one row."""
+        f, phi, label_of = self.modes(np.asarray(p, float)[None, :])
+        ks = np.flatnonzero(label_of[0] == LABELS.index(label))
+        if ks.size == 0:
+            raise ValueError(f"no {label} mode at these parameters")
+        k = int(ks[np.argmin(f[0, ks])])
+        return float((2 * np.pi * f[0, k]) ** 2), phi[0, :, k]
+
     def frequencies(self, P: np.ndarray) -> dict[str, np.ndarray]:
         """Undamped frequencies [Hz] by label for each parameter row; shape (N,) per label.
 
@@ -67,17 +90,9 @@ class LinearFamily:
         (the bogie pairs) the lowest is reported, as :func:`frequencies_by_label` does. A
         parameter row without a mode of some label gets NaN for it.
         """
-        M, K = self.matrices(P)
-        d = np.sqrt(np.einsum("njj->nj", M))
-        A = K / d[:, :, None] / d[:, None, :]
-        w2, V = np.linalg.eigh(A)
-        f = np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi)
-        energy = V**2  # mass-normalised shapes: kinetic energy fraction per DOF
-        scores = np.stack([energy[:, [self.dofs.index(x) for x in dofs if x in self.dofs], :].sum(axis=1)
-                           for dofs in _GROUPS.values()], axis=1)  # (N, n_groups, n_modes)
-        label_of = np.argmax(scores, axis=1)  # (N, n_modes)
+        f, _, label_of = self.modes(P)
         out = {}
-        for g, name in enumerate(_GROUPS):
+        for g, name in enumerate(LABELS):
             mask = label_of == g
             if not mask.any():
                 continue

@@ -30,21 +30,13 @@ from ..models.batch import LinearFamily
 def frequency_sensitivities(family: LinearFamily, p: np.ndarray, labels: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies f (m,) [Hz] and df/dp (m, d) [Hz per unit] at one parameter row, for ``labels``
     (the lowest mode of each label, as :func:`frequencies_by_label` reports)."""
-    M, K = family.matrices(np.asarray(p, float)[None, :])
-    M, K = M[0], K[0]
-    d = np.sqrt(np.diag(M))
-    w2, V = np.linalg.eigh(K / d[:, None] / d[None, :])
-    phi = V / d[:, None]  # mass-normalised shapes
-    freqs = family.frequencies(np.asarray(p, float)[None, :])
-    f_all = np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi)
     rows, f_out = [], []
     for lbl in labels:
-        target = float(freqs[lbl][0])
-        k = int(np.argmin(np.abs(f_all - target)))
-        w = 2 * np.pi * f_all[k]
-        dw2 = np.array([phi[:, k] @ (family.K_unit[n] - w**2 * family.M_unit[n]) @ phi[:, k] for n in family.names])
+        w2, phi = family.labelled_mode(p, lbl)
+        w = np.sqrt(w2)
+        dw2 = np.array([phi @ (family.K_unit[n] - w2 * family.M_unit[n]) @ phi for n in family.names])
         rows.append(dw2 / (2 * w) / (2 * np.pi))
-        f_out.append(f_all[k])
+        f_out.append(w / (2 * np.pi))
     return np.array(f_out), np.array(rows)
 
 

@@ -24,7 +24,6 @@ import casadi as ca
 import numpy as np
 
 from ..models.batch import LinearFamily
-from ..models.car2d import _GROUPS
 
 
 @dataclass(frozen=True)
@@ -46,26 +45,6 @@ def _judged(family: LinearFamily, p: np.ndarray, targets: dict, judge) -> tuple[
     F = family.frequencies(p[None, :])
     f = {k: float(F[k][0]) for k in targets}
     return float(judge(f, targets)), f
-
-
-def _labelled_eigenpairs(family: LinearFamily, p: np.ndarray, labels) -> list[tuple[float, np.ndarray]]:
-    M, K = family.matrices(p[None, :])
-    M, K = M[0], K[0]
-    d = np.sqrt(np.diag(M))
-    w2, V = np.linalg.eigh(K / d[:, None] / d[None, :])
-    phi = V / d[:, None]
-    groups = list(_GROUPS)
-    energy = V**2
-    idx = {g: [family.dofs.index(x) for x in dofs if x in family.dofs] for g, dofs in _GROUPS.items()}
-    label_of = [groups[int(np.argmax([energy[idx[g], k].sum() for g in groups]))] for k in range(len(w2))]
-    out = []
-    for lbl in labels:
-        ks = [k for k in range(len(w2)) if label_of[k] == lbl]
-        if not ks:
-            raise ValueError(f"no {lbl} mode at the start point")
-        k = min(ks, key=lambda k: w2[k])  # the lowest of a pair, as frequencies_by_label
-        out.append((float(w2[k]), phi[:, k]))
-    return out
 
 
 def refine(family: LinearFamily, p_start: np.ndarray, targets: dict, low: np.ndarray, high: np.ndarray, *,
@@ -95,7 +74,7 @@ def refine(family: LinearFamily, p_start: np.ndarray, targets: dict, low: np.nda
     solver = ca.nlpsol("refine", "ipopt", {"x": z, "f": f, "g": ca.vertcat(*g)},
                        {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": tol,
                         "ipopt.max_iter": max_iter})
-    pairs = _labelled_eigenpairs(family, p_start, labels)
+    pairs = [family.labelled_mode(p_start, lbl) for lbl in labels]
     z0 = np.concatenate([np.ones(d), [w2 for w2, _ in pairs], *[phi for _, phi in pairs]])
     inf = np.inf
     lbz = np.concatenate([low / p_start, np.full(len(labels), 1e-9), np.full(n * len(labels), -inf)])
