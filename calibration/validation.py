@@ -44,6 +44,7 @@ from .identification.fdd import _distance_axis
 from .models.car2d import Output, build_car, state_space, wheelset_positions
 from .models.parameters import CarParameters
 from .models.simulate import ModalSimulator
+from .signals.peaks import parabolic_shift
 
 BANDS_M = {"D1": (3.0, 25.0), "D2": (25.0, 70.0)}
 STEP_M = 0.25  # [m] distance grid of the comparison
@@ -129,13 +130,8 @@ def _best_offset(meas: dict, sim: dict, max_offset: float) -> float:
         mid = x.size - 1
         score += c[mid + lags] / (np.linalg.norm(m) * np.linalg.norm(x) + 1e-300)
     k = int(np.argmax(score))
-    shift = 0.0
-    if 0 < k < lags.size - 1:
-        a, b, c = score[k - 1:k + 2]
-        if a - 2 * b + c < 0:
-            shift = 0.5 * (a - c) / (a - 2 * b + c)
     # measured at grid g equals simulated at g - lag: the run sat lag metres further on
-    return float(-(lags[k] + shift) * STEP_M)
+    return float(-(lags[k] + parabolic_shift(score, k)) * STEP_M)
 
 
 def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0, max_offset: float = 10.0,

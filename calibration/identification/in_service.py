@@ -36,6 +36,7 @@ from ..data.errors import CampaignError
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
+from ..signals.peaks import parabolic_shift
 from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
 from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
                   plan_segments)
@@ -162,15 +163,6 @@ def prior_parameters(campaign: Campaign) -> CarParameters:
                             key="priors / vehicle") from None
 
 
-def _refine_peak(f: np.ndarray, y: np.ndarray, k: int) -> float:
-    if 0 < k < y.size - 1:
-        a, b, c = np.log(y[k - 1:k + 2])
-        denom = a - 2 * b + c
-        if denom < 0:
-            return float(f[k] + 0.5 * (a - c) / denom * (f[1] - f[0]))
-    return float(f[k])
-
-
 def fdd_peaks(f: np.ndarray, sv1: np.ndarray, prominence: float, *, smooth_hz: float = 0.1,
               span: float = 1.5, ripple_factor: float = 5.0) -> list[tuple[float, float]]:
     """(frequency [Hz], prominence [decades]) of the peaks of a summed first singular value.
@@ -201,7 +193,7 @@ def fdd_peaks(f: np.ndarray, sv1: np.ndarray, prominence: float, *, smooth_hz: f
             continue  # not the highest point of its neighbourhood, or at the band edge
         prom = ys[i] - max(left.min(), right.min())
         if prom >= threshold:
-            out.append((_refine_peak(f, sv1, int(i)), float(prom)))
+            out.append((float(f[i] + parabolic_shift(y, int(i)) * df), float(prom)))
     return out
 
 

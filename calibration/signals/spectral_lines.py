@@ -27,6 +27,7 @@ import numpy as np
 import scipy.signal
 
 from ..data.campaign import Campaign
+from .peaks import parabolic_shift
 
 
 @dataclass(frozen=True)
@@ -210,14 +211,10 @@ def _local_peak(logp: np.ndarray, f: np.ndarray, f_expected: float, rel: float):
     k = sel[np.argmax(logp[sel])]
     if k <= 0 or k >= f.size - 1:
         return None
-    # parabolic refinement
-    a, b, c = logp[k - 1], logp[k], logp[k + 1]
-    denom = a - 2 * b + c
-    shift = 0.5 * (a - c) / denom if denom < 0 else 0.0
     ring = np.flatnonzero((np.abs(f - f[k]) > 3 * df) & (np.abs(f - f[k]) < max(0.15 * f[k], 8 * df)))
     if ring.size == 0:
         return None
-    return f[k] + shift * df, b - np.median(logp[ring])
+    return f[k] + parabolic_shift(logp, k) * df, logp[k] - np.median(logp[ring])
 
 
 def classify_lines(campaign: Campaign, channels: tuple[str, ...] | None = None, *,
