@@ -84,9 +84,6 @@ class CentreAcceleration:
     gyro: str
     lever: float  # [m] x_s - x_c
 
-    def sources(self) -> tuple[str, ...]:
-        return (self.accelerometer, self.gyro)
-
     def evaluate(self, run: Run, i0: int, i1: int, d: np.ndarray):
         acc, ok_a = _raw(run, self.accelerometer, i0, i1)
         rate, ok_g = _raw(run, self.gyro, i0, i1)
@@ -109,9 +106,6 @@ class RailInput:
     kind: str  # 'bounce' | 'pitch'
     semi_wheelbase: float  # [m]
     delay: float = 0.0  # [m]
-
-    def sources(self) -> tuple[str, ...]:
-        return self.front + self.rear
 
     def _value(self, run: Run, i0: int, i1: int):
         parts, ok = {}, np.ones(i1 - i0, bool)
@@ -227,11 +221,6 @@ class FDDResult:
     n_used: int
     speeds: np.ndarray  # [m/s] mean speed of each used segment
     csd_parts: dict = field(default_factory=dict)  # run id -> that run's share of the sum (jackknife)
-
-    def first_singular_vector(self, f: float) -> np.ndarray:
-        i = int(np.argmin(np.abs(self.frequency - f)))
-        u, _, _ = np.linalg.svd(self.csd[i])
-        return u[:, 0]
 
 
 @dataclass(frozen=True)

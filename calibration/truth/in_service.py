@@ -232,8 +232,9 @@ def modal_truth(p: CarParameters) -> dict:
     """Frequencies, damped frequencies and damping ratios by label; of a pair sharing a label
     the lowest mode (the in-phase one, the seed's convention, see ``frequencies_by_label``)."""
     asm = build_car(p)
+    damped = damped_modes(asm)
     lowest: dict = {}
-    for m in damped_modes(asm):
+    for m in damped:
         if m.label not in lowest or m.frequency_hz < lowest[m.label].frequency_hz:
             lowest[m.label] = m
     return {
@@ -241,7 +242,7 @@ def modal_truth(p: CarParameters) -> dict:
         "damped_frequencies_hz": {k: m.damped_frequency_hz for k, m in lowest.items()},
         "damping_ratios": {k: m.damping_ratio for k, m in lowest.items()},
         "modes": [{"label": m.label, "frequency_hz": m.frequency_hz, "damped_frequency_hz": m.damped_frequency_hz,
-                   "damping_ratio": m.damping_ratio} for m in damped_modes(asm)],
+                   "damping_ratio": m.damping_ratio} for m in damped],
     }
 
 
