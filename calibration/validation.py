@@ -40,7 +40,7 @@ import scipy.signal
 
 from .data.campaign import Campaign
 from .data.errors import CampaignError
-from .identification.fdd import _distance_axis
+from .identification.fdd import distance_axis
 from .models.car2d import Output, build_car, state_space, wheelset_positions
 from .models.parameters import CarParameters
 from .models.simulate import ModalSimulator
@@ -166,11 +166,11 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0,
     ss = state_space(build_car(p), outputs)
     runs, skipped = [], []
     for run in campaign.iter_runs():
-        d = _distance_axis(run.distance, run.speed, run.time)
+        d = distance_axis(run.distance, run.speed, run.time)
         if run.speed is not None:
             # over one recorded section the integrated speed is far steadier than GPS fixes:
             # use it alone, anchored on the blended axis; the correlation then fixes the offset
-            d_speed = _distance_axis(None, run.speed, run.time)
+            d_speed = distance_axis(None, run.speed, run.time)
             d = d_speed + np.median(d - d_speed)
         inside = (d + xw.max() <= track.distance[-1]) & (d + xw.min() >= track.distance[0])
         for a, b in run.blocks:

@@ -230,7 +230,7 @@ class SegmentalFDD:
     outcomes: tuple[SegmentOutcome, ...] = field(repr=False)
 
 
-def _distance_axis(distance, speed, time, *, blend: float = 60.0) -> np.ndarray:
+def distance_axis(distance, speed, time, *, blend: float = 60.0) -> np.ndarray:
     """Distance [m] along the line, complementary-filtered: over less than ``blend``
     seconds the increments come from the speed column (GPS Doppler: precise over metres),
     over longer times the position follows the distance column (GPS fixes: right on
@@ -259,7 +259,7 @@ def plan_segments(campaign: Campaign, n_needed: int, settings: FDDSettings) -> l
     ranges = []
     for path in campaign.run_paths:
         cols = campaign.run_summary(path)
-        d = _distance_axis(cols.get("distance"), cols.get("speed"), cols["time"])
+        d = distance_axis(cols.get("distance"), cols.get("speed"), cols["time"])
         d = d[np.isfinite(d)]
         if d.size and d[-1] - d[0] > settings.segment_length:
             ranges.append((path.stem, float(d[0]), float(d[-1])))
@@ -404,7 +404,7 @@ class SegmentalFDDAccumulator:
     def add_run(self, run: Run) -> int:
         """Process the planned segments of this run; returns how many were used."""
         st = self.settings
-        d = _distance_axis(run.distance, run.speed, run.time)
+        d = distance_axis(run.distance, run.speed, run.time)
         used = 0
         for k, seg in self.by_run.get(run.run_id, []):
             prep, why = _prepare_segment(run, d, seg, self.union, self.derived, st, self.meta.sampling_rate)
