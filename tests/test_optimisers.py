@@ -64,25 +64,52 @@ def test_ce_parameters_refuse_inverted_bounds():
         SearchParameter("m_v", 38000.0, 1e3, 40000.0, 36000.0, 50.0)
 
 
-def test_smoothed_ce_over_a_fixed_budget_reaches_the_seed_table_8_neighbourhood():
-    # The seed's Table 8: 1.07-1.08 Hz carbody bounce with m_v at its lower bound (Table 9).
-    # The literal elite update stalls lower, and so does a smoothed one under the seed's
-    # stopping rule (module docstring); smoothed over a fixed 400 generations it gets there.
+def _seed_table4_objective():
     fam = LinearFamily.of_car(INTERCITY_TRAILER, names=tuple(p.name for p in SEED_TABLE7))
     target = {"carbody_bounce": 1.08, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}
 
     def objective(X):
         F = fam.frequencies(X)
-        return sum((F[k] - v) ** 2 for k, v in target.items())
+        return sum((F[k] - v) ** 2 for k, v in target.items())  # seed eq. 1
 
-    res = cross_entropy(objective, SEED_TABLE7, np.random.default_rng(0),
-                        settings=CESettings(smoothing=0.7, max_generations=400, convergence_fraction=1e-12))
-    assert not res.converged and res.generations == 400
-    F = fam.frequencies(res.mean[None])
-    assert F["carbody_bounce"][0] == pytest.approx(1.08, abs=0.01)
-    for label in ("carbody_pitch", "bogie_bounce", "bogie_pitch"):
-        assert F[label][0] == pytest.approx(target[label], abs=0.005)
-    assert res.mean[0] == pytest.approx(36850.0, abs=5.0)  # m_v on its lower bound, as in the seed
+    def worst_error(p):
+        F = fam.frequencies(p[None])
+        return max(abs(F[k][0] - v) for k, v in target.items())
+
+    return objective, worst_error
+
+
+def test_ce_with_the_seed_settings_meets_table_8_with_carbody_mass_on_its_bound():
+    # Seed Table 8: every run within 0.01 Hz; Table 9: m_v at the lower limit of its range.
+    objective, worst_error = _seed_table4_objective()
+    res = cross_entropy(objective, SEED_TABLE7, np.random.default_rng(4))
+    assert res.converged and res.restarts >= 1
+    assert worst_error(res.mean) <= 0.01
+    assert res.mean[0] == pytest.approx(36850.0, abs=50.0)  # within its convergence range of the bound
+
+
+def test_ce_with_the_elite_own_deviation_stalls_below_the_carbody_bounce_target():
+    # The other reading of the update (module docstring): the deviation collapses first.
+    objective, worst_error = _seed_table4_objective()
+    res = cross_entropy(objective, SEED_TABLE7, np.random.default_rng(6),
+                        settings=CESettings(deviation_about="elite"))
+    assert res.converged
+    assert worst_error(res.mean) > 0.01
+
+
+def test_truncated_normal_draws_match_scipy_in_distribution():
+    from calibration.optimisers.cross_entropy import _truncated_normal
+    rng = np.random.default_rng(0)
+    mean, std = np.array([0.0, 1.0, 5.0]), np.array([1.0, 2.0, 0.5])
+    low, high = np.array([-0.5, 0.9, 0.0]), np.array([2.0, np.inf, 5.2])
+    X = _truncated_normal(rng, mean, std, low, high, 200_000)
+    assert np.all(X >= low) and np.all(X <= high)
+    a, b = (low - mean) / std, (high - mean) / std
+    import scipy.stats
+    sd = scipy.stats.truncnorm.std(a, b, loc=mean, scale=std)
+    standard_error = sd / np.sqrt(len(X))
+    assert np.all(np.abs(X.mean(axis=0) - scipy.stats.truncnorm.mean(a, b, loc=mean, scale=std)) < 5 * standard_error)
+    np.testing.assert_allclose(X.std(axis=0), sd, rtol=0.01)
 
 
 @pytest.mark.parametrize("name", sorted(OPTIMISERS))
