@@ -1,0 +1,550 @@
+"""Experimental modal analysis of a stationary shaker test (one force input, many outputs).
+
+Pipeline (pure functions of arrays; results are frozen objects made once):
+
+1. :func:`frf_h1` estimates H = G_fy / G_ff (H1) and the ordinary coherence of every output
+   from Welch spectra of the force [N] and the responses (e.g. accelerations [m/s^2]).
+2. :func:`lscf` runs the least-squares complex-frequency-domain estimator (p-LSCF,
+   "PolyMAX" with one reference) for a list of model orders and flags, order by order, the
+   poles that are stable in frequency, damping and shape: a :class:`Stabilisation`.
+   :meth:`Stabilisation.select_modes` turns clusters of stable poles into physical modes.
+3. :func:`mode_shapes` fits residues to all outputs at the selected poles by least-squares
+   frequency-domain (LSFD) fitting with lower and upper residual terms.
+4. :func:`peak_picking` is the baseline: peaks of sum_o |H_o|^2, half-power damping,
+   shapes from the quadrature (imaginary) response.
+5. :func:`mac` / :func:`auto_mac` compare shapes; :func:`plot_stabilisation` and
+   :func:`plot_mac` draw the two usual figures.
+
+Sign convention: time dependence exp(+i omega t), poles lambda = -zeta omega_n + i omega_d
+with omega_d > 0; one pole of every complex-conjugate pair is reported. Frequencies in Hz,
+eigenvalues in rad/s. Mode shapes are complex columns scaled so that their
+largest-magnitude entry is 1 (real, positive).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.signal
+
+from ..signals.peaks import parabolic_shift
+
+Quantity = Literal["displacement", "velocity", "acceleration"]
+_DERIVATIVE = {"displacement": 0, "velocity": 1, "acceleration": 2}
+
+
+# --------------------------------------------------------------------------- results
+
+
+@dataclass(frozen=True, eq=False)
+class FRFEstimate:
+    """H1 estimate: ``H[k, o]`` is output o per unit force at ``frequency[k]`` [Hz]
+    (e.g. (m/s^2)/N for accelerance), ``coherence`` its ordinary coherence [-], from
+    ``n_averages`` Welch segments."""
+
+    frequency: np.ndarray  # (n_f,) [Hz]
+    H: np.ndarray  # (n_f, n_out) complex
+    coherence: np.ndarray  # (n_f, n_out) in [0, 1]
+    n_averages: int
+
+
+@dataclass(frozen=True, eq=False)
+class Mode:
+    """One identified mode: natural frequency [Hz], damping ratio [-] (None when not
+    resolvable), shape (n_out,) with largest-magnitude entry 1 (None when not estimated),
+    and the number of model orders in which the pole was stable (0 for peak picking)."""
+
+    frequency_hz: float
+    damping_ratio: float | None
+    shape: np.ndarray | None = None
+    n_stable: int = 0
+
+    @property
+    def eigenvalue(self) -> complex:
+        """lambda = -zeta omega_n + i omega_n sqrt(1 - zeta^2) [rad/s]."""
+        w, z = 2 * np.pi * self.frequency_hz, self.damping_ratio or 0.0
+        return complex(-z * w, w * np.sqrt(1 - z * z))
+
+
+@dataclass(frozen=True, eq=False)
+class OrderPoles:
+    """Poles of one model order kept in the band (one per conjugate pair), sorted by
+    frequency, with their stability against the previous order of the diagram."""
+
+    order: int
+    frequency_hz: np.ndarray  # (n_p,)
+    damping_ratio: np.ndarray  # (n_p,)
+    shapes: np.ndarray  # (n_out, n_p) complex, numerators at the poles, normalised
+    stable_frequency: np.ndarray  # (n_p,) bool
+    stable_damping: np.ndarray  # (n_p,) bool
+    stable_shape: np.ndarray  # (n_p,) bool
+
+    @property
+    def stable(self) -> np.ndarray:
+        """Stable in frequency, damping and shape."""
+        return self.stable_frequency & self.stable_damping & self.stable_shape
+
+
+@dataclass(frozen=True, eq=False)
+class Stabilisation:
+    """Stabilisation diagram of :func:`lscf`: one :class:`OrderPoles` per model order, and
+    the criteria used (relative frequency and damping change, MAC with the nearest pole of
+    the previous order)."""
+
+    band: tuple[float, float]  # [Hz]
+    orders: tuple[OrderPoles, ...]
+    freq_tol: float
+    damping_tol: float
+    mac_min: float
+    max_damping: float
+
+    def select_modes(self, *, min_fraction: float = 0.4, cluster_tol: float = 0.005) -> list[Mode]:
+        """Physical modes: clusters of stable poles across orders, one mode each.
+
+        Stable poles of all orders are sorted by frequency and cut where consecutive poles
+        differ by more than ``cluster_tol`` (relative); within a cluster each order keeps
+        its pole nearest the cluster median. A cluster is a mode when it holds stable poles
+        from at least ``min_fraction`` of the orders; its frequency and damping are the
+        medians, its shape that of the pole nearest the median frequency.
+        """
+        if not 0 < min_fraction <= 1:
+            raise ValueError(f"min_fraction must be in (0, 1], got {min_fraction}")
+        rows = [(op.frequency_hz[i], op.damping_ratio[i], k, op.shapes[:, i])
+                for k, op in enumerate(self.orders) for i in np.flatnonzero(op.stable)]
+        rows.sort(key=lambda r: r[0])
+        clusters, current = [], []
+        for r in rows:
+            if current and r[0] - current[-1][0] > cluster_tol * r[0]:
+                clusters.append(current)
+                current = []
+            current.append(r)
+        if current:
+            clusters.append(current)
+        modes = []
+        for c in clusters:
+            f_med = np.median([r[0] for r in c])
+            best = {}
+            for r in c:  # one pole per order
+                if r[2] not in best or abs(r[0] - f_med) < abs(best[r[2]][0] - f_med):
+                    best[r[2]] = r
+            if len(best) < min_fraction * len(self.orders):
+                continue
+            sel = list(best.values())
+            f = np.array([r[0] for r in sel])
+            shape = sel[int(np.argmin(np.abs(f - np.median(f))))][3]
+            modes.append(Mode(float(np.median(f)), float(np.median([r[1] for r in sel])), shape, len(sel)))
+        return modes
+
+
+@dataclass(frozen=True, eq=False)
+class ModalFit:
+    """LSFD fit over the band: complex ``shapes`` (n_out, n_modes) normalised to a largest
+    entry of 1, the ``residues`` they come from (units of H times rad/s), the real lower
+    and upper residual coefficients, the synthesised FRF ``H_fit`` on ``frequency`` and the
+    relative fit error ||H - H_fit|| / ||H|| of each output over the band."""
+
+    frequency: np.ndarray  # (n_fb,) [Hz]
+    shapes: np.ndarray  # (n_out, n_modes) complex
+    residues: np.ndarray  # (n_out, n_modes) complex
+    lower: np.ndarray  # (n_out,) coefficient of s^(d-2) [H (rad/s)^(2-d)]
+    upper: np.ndarray  # (n_out,) coefficient of s^d [H (rad/s)^-d]
+    H_fit: np.ndarray  # (n_fb, n_out) complex
+    relative_error: np.ndarray  # (n_out,)
+
+
+# --------------------------------------------------------------------------- H1
+
+
+def frf_h1(force: np.ndarray, responses: np.ndarray, fs: float, nperseg: int, noverlap: int | None = None,
+           window="hann") -> FRFEstimate:
+    """H1 estimator H_o = G_fy_o / G_ff with ordinary coherence |G_fy_o|^2 / (G_ff G_yy_o).
+
+    Welch averaging (``scipy.signal.csd`` / ``welch``, same ``fs``, ``nperseg``,
+    ``noverlap`` (default nperseg // 2), ``window``, mean removed per segment). H1 is unbiased by noise on the
+    responses; noise on the force biases |H| low (Bendat & Piersol, *Engineering
+    applications of correlation and spectral analysis*, 2nd ed. 1993, ch. 3).
+
+    ``force`` (n,) [N], ``responses`` (n, n_out) (or (n,)), ``fs`` [Hz]. At least two
+    segments are required (the coherence of one segment is 1 whatever the data).
+    """
+    force = np.asarray(force, float)
+    responses = np.asarray(responses, float)
+    if responses.ndim == 1:
+        responses = responses[:, None]
+    if force.ndim != 1 or responses.ndim != 2:
+        raise ValueError(f"force must be 1-D (n,) and responses (n, n_out); got {force.shape} and {responses.shape}")
+    if force.size != responses.shape[0]:
+        raise ValueError(f"length mismatch: force has {force.size} samples, responses {responses.shape[0]}")
+    for name, x in (("force", force), ("responses", responses)):
+        bad = np.flatnonzero(~np.isfinite(x.reshape(x.shape[0], -1)).all(axis=1))
+        if bad.size:
+            raise ValueError(f"{name} contains NaN or inf ({bad.size} samples, first at sample {bad[0]})")
+    if not fs > 0:
+        raise ValueError(f"fs must be > 0 Hz, got {fs}")
+    noverlap = nperseg // 2 if noverlap is None else int(noverlap)
+    if not 0 <= noverlap < nperseg:
+        raise ValueError(f"noverlap must be in [0, nperseg), got {noverlap} for nperseg {nperseg}")
+    n_avg = 1 + (force.size - nperseg) // (nperseg - noverlap) if force.size >= nperseg else 0
+    if n_avg < 2:
+        raise ValueError(f"record too short: {force.size} samples give {n_avg} Welch segment(s) of nperseg "
+                         f"{nperseg} with noverlap {noverlap}; at least 2 are needed")
+    kw = {"fs": fs, "nperseg": nperseg, "noverlap": noverlap, "window": window, "axis": 0}
+    f, Gff = scipy.signal.welch(force, **kw)
+    _, Gfy = scipy.signal.csd(force[:, None], responses, **kw)  # E[conj(F) Y]
+    _, Gyy = scipy.signal.welch(responses, **kw)
+    Gff = Gff[:, None]
+    tiny = np.finfo(float).tiny
+    H = Gfy / np.maximum(Gff, tiny)
+    coherence = np.clip(np.abs(Gfy) ** 2 / np.maximum(Gff * Gyy, tiny), 0.0, 1.0)
+    return FRFEstimate(f, H, coherence, int(n_avg))
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _in_band(frequency, H, band, weights=None, min_lines: int = 8):
+    """Validated band selection: f (n_b,), H (n_b, n_out), weights (n_b, n_out)."""
+    f = np.asarray(frequency, float)
+    H = np.asarray(H)
+    if H.ndim == 1:
+        H = H[:, None]
+    if f.ndim != 1 or H.shape[0] != f.size:
+        raise ValueError(f"H must have shape (n_f, n_out) with n_f = len(frequency) = {f.size}; got {H.shape}")
+    lo, hi = band
+    if not 0 <= lo < hi:
+        raise ValueError(f"band {band} Hz must satisfy 0 <= f_lo < f_hi")
+    sel = (f >= lo) & (f <= hi)
+    if np.count_nonzero(sel) < min_lines:
+        raise ValueError(f"band {band} Hz holds {np.count_nonzero(sel)} spectral lines; at least {min_lines} needed")
+    if not np.all(np.isfinite(H[sel])):
+        raise ValueError(f"H contains NaN or inf inside the band {band} Hz")
+    W = None
+    if weights is not None:
+        W = np.asarray(weights, float)
+        W = np.broadcast_to(W[:, None] if W.ndim == 1 else W, H.shape)[sel]
+        if np.any(W < 0) or not np.all(np.isfinite(W)):
+            raise ValueError("weights must be finite and >= 0")
+    return f[sel], H[sel], W
+
+
+def _normalise(phi: np.ndarray) -> np.ndarray:
+    """Scale each column so that its largest-magnitude entry is 1 (real, positive)."""
+    phi = np.array(phi, complex, ndmin=2)
+    k = np.argmax(np.abs(phi), axis=0)
+    ref = phi[k, np.arange(phi.shape[1])]
+    return phi / np.where(ref == 0, 1, ref)
+
+
+def _eigenvalues(poles) -> np.ndarray:
+    """Eigenvalues [rad/s] from complex values or objects with frequency_hz/damping_ratio."""
+    if isinstance(poles, np.ndarray) and np.iscomplexobj(poles):
+        lam = poles.ravel()
+    else:
+        lam = np.array([p.eigenvalue if hasattr(p, "eigenvalue") else complex(p) for p in poles], complex)
+    if lam.size == 0:
+        raise ValueError("no poles given")
+    if np.any(lam.real >= 0) or np.any(lam.imag <= 0):
+        raise ValueError("poles must be stable and oscillatory (Re lambda < 0 < Im lambda); "
+                         f"got {lam[(lam.real >= 0) | (lam.imag <= 0)]}")
+    return lam
+
+
+# --------------------------------------------------------------------------- MAC
+
+
+def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
+    """Modal assurance criterion between the columns of ``phi_a`` (n, n_a) and ``phi_b``
+    (n, n_b): MAC_ij = |a_i^H b_j|^2 / ((a_i^H a_i)(b_j^H b_j)), in [0, 1], invariant to
+    complex scaling of either shape (Allemang & Brown, Proc. 1st IMAC, 1982). 1-D inputs
+    are single shapes."""
+    a = np.asarray(phi_a)
+    b = np.asarray(phi_b)
+    a = a[:, None] if a.ndim == 1 else a
+    b = b[:, None] if b.ndim == 1 else b
+    if a.shape[0] != b.shape[0]:
+        raise ValueError(f"shapes have {a.shape[0]} and {b.shape[0]} entries; they must match")
+    num = np.abs(a.conj().T @ b) ** 2
+    den = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
+    if np.any(den == 0):
+        raise ValueError("a mode shape is all zeros")
+    return num / den
+
+
+def auto_mac(phi: np.ndarray) -> np.ndarray:
+    """MAC of the columns of ``phi`` with each other (n_modes, n_modes)."""
+    return mac(phi, phi)
+
+
+# --------------------------------------------------------------------------- p-LSCF
+
+
+def lscf(frequency: np.ndarray, H: np.ndarray, band: tuple[float, float], orders: Sequence[int],
+         weights: np.ndarray | None = None, *, freq_tol: float = 0.01, damping_tol: float = 0.05,
+         mac_min: float = 0.98, max_damping: float = 0.2) -> Stabilisation:
+    """Poles of a common-denominator fraction H_o(z) = N_o(z) / d(z) for every model order.
+
+    Least-squares complex-frequency-domain (LSCF) estimator with one reference, the
+    single-input case of poly-reference LSCF ("PolyMAX"): Guillaume, Verboven, Vanlanduit,
+    Van der Auweraer & Peeters, Proc. IMAC XXI (2003); Peeters, Van der Auweraer, Guillaume
+    & Leuridan, Shock and Vibration 11 (2004) 395-409.
+
+    * Basis z_k^r with z_k = exp(i omega_k dt), dt = 1 / (2 f_hi): the band lies on the
+      upper unit half-circle, so the columns are orthogonal-like and no frequency scaling is
+      needed. Coefficients are real (conjugate symmetry of physical FRFs).
+    * Linearised error per output and line: w_ko (N_o(z_k) - H_ko d(z_k)). The numerators
+      are eliminated output by output: M = sum_o (T_o - S_o^T R_o^-1 S_o) with the real
+      parts R_o = Re X_o^H X_o, S_o = Re X_o^H Y_o, T_o = Re Y_o^H Y_o (reduced normal
+      equations), solved with the highest denominator coefficient fixed to 1 (PolyMAX).
+      As |z| = 1 the blocks are Toeplitz: they are formed once, at the highest order, from
+      one product per kind; lower orders are leading sub-blocks.
+    * Poles lambda = ln(z_root) / dt; kept: Im lambda > 0, 0 < zeta < ``max_damping``,
+      natural frequency in ``band``. A pole's shape is the numerators at it, N_o(z_root)
+      (proportional to the residues over outputs).
+
+    ``frequency`` (n_f,) [Hz], ``H`` (n_f, n_out), ``weights`` (n_f,) or (n_f, n_out) on
+    the equation error (e.g. coherence, or 1 / standard deviation of H). ``orders`` are
+    denominator orders (order p gives at most p/2 modes), analysed in increasing order.
+    Stability against the nearest pole of the next lower order in ``orders``: relative
+    frequency change <= ``freq_tol``, relative damping change <= ``damping_tol``, MAC >=
+    ``mac_min``; the lowest order has nothing to compare with and is never stable.
+    """
+    orders = [int(p) for p in orders]
+    if not orders or min(orders) < 2:
+        raise ValueError(f"orders must be a non-empty list of integers >= 2, got {orders}")
+    f, Hb, W = _in_band(frequency, H, band, weights)
+    n_out = Hb.shape[1]
+    common = W is None or np.allclose(W, W[:, :1])  # one R for all outputs
+    W2 = (np.ones((f.size, 1)) if W is None else W[:, :1] ** 2) if common else W ** 2
+    dt = 1.0 / (2.0 * band[1])
+    p_max = max(orders)
+    if 2 * f.size * n_out < 2 * p_max + 2:
+        raise ValueError(f"order {p_max} needs more data than {f.size} lines x {n_out} outputs")
+    # |z| = 1 makes every Gram matrix Toeplitz: Re sum_k g_k conj(z_k^r) z_k^s = Re c[s - r]
+    # with c[d] = sum_k g_k z_k^d, so one product per kind gives all outputs and orders
+    Z = np.exp(1j * 2 * np.pi * f * dt * np.arange(-p_max, p_max + 1)[:, None]).T  # (n_b, 2 p_max + 1)
+    D = np.arange(p_max + 1)[None, :] - np.arange(p_max + 1)[:, None] + p_max  # s - r, shifted
+    R = np.real(W2.T @ Z)[:, D]  # (1 or n_out, p_max + 1, p_max + 1)
+    S = -np.real((W2 * Hb).T @ Z)[:, D]  # (n_out, ., .)
+    T = np.real(np.sum(W2 * np.abs(Hb) ** 2, axis=1) @ Z)[D]  # sum over outputs
+
+    result, prev = [], None
+    for p in sorted(set(orders)):
+        n = p + 1
+        Sp = S[:, :n, :n]
+        if common:  # R^-1 [S_1 ... S_m] in one solve
+            RinvS = np.linalg.solve(R[0, :n, :n], Sp.transpose(1, 0, 2).reshape(n, -1))
+            RinvS = RinvS.reshape(n, n_out, n).transpose(1, 0, 2)
+        else:
+            RinvS = np.linalg.solve(R[:, :n, :n], Sp)
+        M = T[:n, :n] - Sp.reshape(-1, n).T @ RinvS.reshape(-1, n)  # sum_o T_o - S_o^T R_o^-1 S_o
+        alpha = np.append(np.linalg.solve(M[:p, :p], -M[:p, p]), 1.0)
+        beta = -(RinvS.reshape(-1, n) @ alpha).reshape(n_out, n)  # numerator coefficients
+        zr = np.roots(alpha[::-1]).astype(complex)
+        zr = zr[zr != 0]
+        lam = np.log(zr) / dt
+        wn = np.abs(lam)
+        zeta = -lam.real / wn
+        fn = wn / (2 * np.pi)
+        keep = (lam.imag > 0) & (zeta > 0) & (zeta < max_damping) & (fn >= band[0]) & (fn <= band[1])
+        idx = np.flatnonzero(keep)[np.argsort(fn[keep])]
+        fn, zeta, zr = fn[idx], zeta[idx], zr[idx]
+        shapes = _normalise(beta @ zr[None, :] ** np.arange(n)[:, None]) if idx.size else np.empty((n_out, 0))
+        sf = np.zeros(idx.size, bool)
+        sd, sv = sf.copy(), sf.copy()
+        if prev is not None and prev.frequency_hz.size and idx.size:
+            j = np.argmin(np.abs(fn[:, None] - prev.frequency_hz[None, :]), axis=1)
+            sf = np.abs(fn - prev.frequency_hz[j]) <= freq_tol * fn
+            sd = np.abs(zeta - prev.damping_ratio[j]) <= damping_tol * zeta
+            sv = np.einsum("ii->i", mac(shapes, prev.shapes[:, j])) >= mac_min
+        prev = OrderPoles(p, fn, zeta, shapes, sf, sd, sv)
+        result.append(prev)
+    return Stabilisation((float(band[0]), float(band[1])), tuple(result), freq_tol, damping_tol, mac_min,
+                         max_damping)
+
+
+# --------------------------------------------------------------------------- LSFD
+
+
+def mode_shapes(frequency: np.ndarray, H: np.ndarray, poles, band: tuple[float, float], *,
+                quantity: Quantity = "acceleration", weights: np.ndarray | None = None) -> ModalFit:
+    """Residues of all outputs at given poles by least-squares frequency-domain (LSFD) fit.
+
+    H_o(s) = sum_r [R_or / (s - lambda_r) + conj(R_or) / (s - conj(lambda_r))]
+             + L_o s^(d-2) + U_o s^d,   s = i omega,
+
+    with d = 0, 1, 2 for displacement, velocity, acceleration per force: the lower residual
+    stands for the modes below the band (mass line of a receptance), the upper for those
+    above (the constant of a receptance); for an accelerance they are a constant and an
+    s^2 term, and the accelerance's own constant (sum of phi phi^T / m) is part of L_o. The
+    problem is linear in real unknowns (Re R, Im R, L, U), shared by all outputs, and solved
+    in one column-scaled least-squares problem with s scaled by the band's centre
+    (Peeters et al., Shock and Vibration 11 (2004); Heylen, Lammens & Sas, *Modal analysis
+    theory and testing*, KU Leuven 1997).
+
+    For one input the residue column R_:r is proportional to the mode shape; the returned
+    shapes are those columns scaled to a largest-magnitude entry of 1.
+    ``poles``: :class:`Mode` objects (or anything with ``frequency_hz``/``damping_ratio``)
+    or complex eigenvalues [rad/s], one per conjugate pair.
+    """
+    if quantity not in _DERIVATIVE:
+        raise ValueError(f"quantity must be one of {sorted(_DERIVATIVE)}, got {quantity!r}")
+    lam = _eigenvalues(poles)
+    f, Hb, W = _in_band(frequency, H, band, weights)
+    n_out, m = Hb.shape[1], lam.size
+    w0 = np.pi * (f[0] + f[-1])  # centre of the band [rad/s]
+    s = 1j * 2 * np.pi * f / w0
+    if np.any(s == 0) and _DERIVATIVE[quantity] < 2:
+        raise ValueError("the band includes 0 Hz, where the lower residual is singular; start it above 0")
+    ls = lam / w0
+    d = _DERIVATIVE[quantity]
+    P = 1 / (s[:, None] - ls) + 1 / (s[:, None] - ls.conj())  # multiplies Re R
+    Q = 1j / (s[:, None] - ls) - 1j / (s[:, None] - ls.conj())  # multiplies Im R
+    A = np.hstack([P, Q, (s ** (d - 2.0))[:, None], (s ** float(d))[:, None]])
+    if W is None or np.allclose(W, W[:, :1]):
+        w = np.ones(f.size) if W is None else W[:, 0]
+        Ar = np.vstack([(A * w[:, None]).real, (A * w[:, None]).imag])
+        br = np.vstack([(Hb * w[:, None]).real, (Hb * w[:, None]).imag])
+        scale = np.linalg.norm(Ar, axis=0)
+        x = np.linalg.lstsq(Ar / scale, br, rcond=None)[0] / scale[:, None]
+    else:  # different weights per output: one problem each
+        x = np.empty((2 * m + 2, n_out))
+        for o in range(n_out):
+            Aw = A * W[:, o:o + 1]
+            Ar = np.vstack([Aw.real, Aw.imag])
+            scale = np.linalg.norm(Ar, axis=0)
+            bo = np.concatenate([(Hb[:, o] * W[:, o]).real, (Hb[:, o] * W[:, o]).imag])
+            x[:, o] = np.linalg.lstsq(Ar / scale, bo, rcond=None)[0] / scale
+    H_fit = A @ x
+    residues = (x[:m] + 1j * x[m:2 * m]).T * w0  # back to H * rad/s
+    err = np.linalg.norm(Hb - H_fit, axis=0) / np.maximum(np.linalg.norm(Hb, axis=0), np.finfo(float).tiny)
+    return ModalFit(f, _normalise(residues), residues, x[2 * m] * w0 ** (2.0 - d), x[2 * m + 1] * w0 ** (-float(d)),
+                    H_fit, err)
+
+
+# --------------------------------------------------------------------------- peak picking
+
+
+def peak_picking(frequency: np.ndarray, H: np.ndarray, band: tuple[float, float], min_separation_hz: float, *,
+                 prominence_db: float = 3.0, n_modes: int | None = None, min_lines: int = 3,
+                 quantity: Quantity = "acceleration") -> list[Mode]:
+    """Modes from the peaks of the indicator sum_o |H_o|^2 (for one input, the square of the
+    first singular value of H) in ``band`` [Hz].
+
+    * Peaks at least ``min_separation_hz`` apart and ``prominence_db`` above their
+      surroundings (on 10 log10 of the indicator); with ``n_modes`` the most prominent ones.
+    * Sub-bin frequency: vertex of the parabola through the three dB values around the peak
+      line (:func:`calibration.signals.peaks.parabolic_shift`).
+    * Damping by the half-power bandwidth, zeta = (f_2 - f_1) / (2 f_peak), with f_1, f_2
+      where the indicator falls to half its peak value (linear interpolation). None when a
+      side does not fall to half power before the next valley or the band edge (overlapping
+      modes), or when fewer than ``min_lines`` lines lie between f_1 and f_2.
+    * Shape: the quadrature response at the peak line. At resonance a lightly damped real
+      mode makes the receptance purely imaginary, H_o ~ -i phi_o phi_f / (2 m zeta w^2), and
+      the accelerance (-w^2 times the receptance) likewise, so shape = Im H[peak]; for a
+      mobility (``quantity="velocity"``) it is Re H. The column is real and scaled so that
+      its largest-magnitude entry is +1, so the sign relative to the driving point is not
+      kept. Valid for well-separated, lightly damped modes (Ewins, *Modal testing*, 2nd ed.
+      2000, sec. 4.3).
+    """
+    if not min_separation_hz > 0:
+        raise ValueError(f"min_separation_hz must be > 0, got {min_separation_hz}")
+    if quantity not in _DERIVATIVE:
+        raise ValueError(f"quantity must be one of {sorted(_DERIVATIVE)}, got {quantity!r}")
+    f, Hb, _ = _in_band(frequency, H, band)
+    df = float(np.median(np.diff(f)))
+    ind = np.sum(np.abs(Hb) ** 2, axis=1)
+    db = 10 * np.log10(np.maximum(ind, np.finfo(float).tiny))
+    peaks, props = scipy.signal.find_peaks(db, distance=max(1, round(min_separation_hz / df)),
+                                           prominence=prominence_db)
+    if n_modes is not None:
+        peaks = np.sort(peaks[np.argsort(props["prominences"])[::-1][:n_modes]])
+    modes = []
+    for k in peaks:
+        fk = float(f[k] + parabolic_shift(db, int(k)) * df)
+        f1, f2 = _half_power(f, ind, int(k))
+        zeta = None
+        if f1 is not None and f2 is not None and np.count_nonzero((f > f1) & (f < f2)) >= min_lines:
+            zeta = float((f2 - f1) / (2 * fk))
+        part = Hb[k].real if quantity == "velocity" else Hb[k].imag
+        modes.append(Mode(fk, zeta, _normalise(part[:, None])[:, 0].real))
+    return modes
+
+
+def _half_power(f, ind, k):
+    """Frequencies left and right of peak line k where ``ind`` first falls to half of
+    ind[k], searching only down to the adjacent valley; None where it does not."""
+    half = ind[k] / 2
+    out = []
+    for step in (-1, 1):
+        j, found = k, None
+        while 0 <= j + step < ind.size:
+            a, b = ind[j], ind[j + step]
+            if b > a:  # rising again: next mode before half power
+                break
+            if b <= half:
+                found = f[j] + (f[j + step] - f[j]) * (a - half) / (a - b)
+                break
+            j += step
+        out.append(found)
+    return out[0], out[1]
+
+
+# --------------------------------------------------------------------------- figures
+
+
+def plot_stabilisation(stab: Stabilisation, frequency: np.ndarray, H: np.ndarray, path, *,
+                       modes: Sequence[Mode] | None = None):
+    """Stabilisation diagram over sum_o |H_o|^2 (dB, right axis): every kept pole by order,
+    marked not stable (o), stable in frequency (.), frequency and damping (x), or all
+    including shape (filled circle); vertical lines at ``modes``. Written atomically to
+    ``path`` (temporary file in the same folder, then ``os.replace``)."""
+    from .plots import plt, save_figure  # Agg backend, temporary file then os.replace
+
+    f, Hb, _ = _in_band(frequency, H, stab.band, min_lines=2)
+    fig, ax = plt.subplots(figsize=(10, 5.5))
+    styles = [("not stable", {"marker": "o", "mfc": "none", "color": "0.6", "ms": 4}),
+              ("frequency", {"marker": ".", "color": "tab:blue", "ms": 5}),
+              ("frequency + damping", {"marker": "x", "color": "tab:orange", "ms": 5}),
+              ("frequency + damping + shape", {"marker": "o", "color": "tab:green", "ms": 4})]
+    for level, (label, st) in enumerate(styles):
+        xs, ys = [], []
+        for op in stab.orders:
+            sf_sd = op.stable_frequency & op.stable_damping
+            sel = op.stable_frequency.astype(int) + sf_sd + op.stable == level
+            xs.extend(op.frequency_hz[sel])
+            ys.extend([op.order] * int(sel.sum()))
+        ax.plot(xs, ys, ls="none", label=label, **st)
+    for m in modes or ():
+        ax.axvline(m.frequency_hz, color="k", lw=0.8, ls="--")
+    ax.set_xlim(stab.band)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("model order")
+    ax.legend(fontsize=8, loc="upper left")
+    ax2 = ax.twinx()
+    ax2.plot(f, 10 * np.log10(np.maximum(np.sum(np.abs(Hb) ** 2, axis=1), np.finfo(float).tiny)), color="k", lw=1)
+    ax2.set_ylabel("sum of |H|^2 [dB]")
+    ax.set_title(f"p-LSCF stabilisation (df {100 * stab.freq_tol:g} %, dzeta {100 * stab.damping_tol:g} %, "
+                 f"MAC >= {stab.mac_min:g})")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_mac(matrix: np.ndarray, labels_a: Sequence[str], labels_b: Sequence[str], path):
+    """MAC matrix as a grey-scale image with the values written in; rows ``labels_a``,
+    columns ``labels_b``. Written atomically to ``path``."""
+    from .plots import plt, save_figure
+
+    matrix = np.asarray(matrix, float)
+    if matrix.shape != (len(labels_a), len(labels_b)):
+        raise ValueError(f"MAC matrix {matrix.shape} does not match {len(labels_a)} x {len(labels_b)} labels")
+    fig, ax = plt.subplots(figsize=(1.2 + 0.6 * len(labels_b), 1.0 + 0.6 * len(labels_a)))
+    ax.imshow(matrix, cmap="Greys", vmin=0, vmax=1)
+    for (i, j), v in np.ndenumerate(matrix):
+        ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
+    ax.set_xticks(range(len(labels_b)), labels_b, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(labels_a)), labels_a, fontsize=8)
+    ax.set_title("MAC")
+    fig.tight_layout()
+    return save_figure(fig, path)

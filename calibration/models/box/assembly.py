@@ -1,0 +1,276 @@
+"""Assembly of the extended box-type vehicle: panels, panel joints, point masses, rigid
+bogies and suspension elements, into M, C and K = K0 + sum_i p_i K_i.
+
+Every element contributes through point operators, carbody-frame displacement (3 x n)
+or rotation (3 x n) of a material point, so the equations of motion follow from
+Lagrange's equation (seed eq. 1-2) with the energies written once:
+
+* panel: T and U of :class:`~calibration.models.box.panel.Panel`;
+* joint between two panels along a shared edge (seed Figure 1b), integrated by Gauss
+  points along the edge, per unit length:
+  1/2 k_t |d_A - d_B|^2 + 1/2 k_r (t . (omega_A - omega_B))^2,
+  d the displacement and omega the rotation of each panel's edge point, t the edge
+  direction. This is the energy of the seed's two parallel springs across the joint,
+  written by what they set: their sum is the translational coupling k_t, their offset the
+  rotational coupling about the edge k_r. (Two springs joining points offset *into* each
+  panel, as a literal reading of the figure might suggest, would strain under a rigid
+  rotation of the whole corner; this form cannot.)
+* spring-damper between two points (panel points, rigid-body points or the ground),
+  stiffness and damping per carbody axis: 1/2 (d_A - d_B)^T diag(k) (d_A - d_B);
+* point mass rigidly attached to a panel point: 1/2 m |d|^2.
+
+Parameters scale groups of these energies: a ``StiffnessParameter`` names which panel
+rigidities or joint springs it multiplies, and its matrix K_i is assembled once.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.polynomial import legendre
+
+from .panel import BENDING, MEMBRANE, Panel
+
+
+@dataclass(frozen=True)
+class RigidBody:
+    name: str
+    mass: float  # [kg]
+    inertia: tuple[float, float, float]  # [kg m^2] about x, y, z through the centre of mass
+    centre: tuple[float, float, float]  # [m] carbody frame
+    fixed: tuple[str, ...] = ()  # constrained DOF among x, y, z, roll, pitch, yaw
+
+    def operator(self, point) -> np.ndarray:
+        """(3, 6) displacement of a body point from (x, y, z, roll, pitch, yaw)."""
+        r = np.asarray(point, float) - np.asarray(self.centre, float)
+        skew = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
+        return np.hstack([np.eye(3), -skew])
+
+
+RIGID_DOFS = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+@dataclass(frozen=True)
+class Joint:
+    group: str  # joints of a group share k_t, k_r
+    panel_a: str
+    panel_b: str
+    start: tuple[float, float, float]
+    end: tuple[float, float, float]
+    k_t: float  # [N/m per m of edge]
+    k_r: float  # [N m/rad per m of edge]
+
+
+@dataclass(frozen=True)
+class Link:
+    """Spring-damper between two points; ``body`` names a panel, a rigid body or "ground"."""
+    name: str
+    group: str  # e.g. "air_spring"; links of a group share their parameters
+    body_a: str
+    point_a: tuple[float, float, float]
+    body_b: str
+    point_b: tuple[float, float, float]
+    k: tuple[float, float, float]  # [N/m] along x, y, z
+    c: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N s/m]
+    patch: tuple[float, float] = (0.0, 0.0)  # [m] seat size on a panel at point_a (see Patch)
+
+
+@dataclass(frozen=True)
+class PointMass:
+    name: str
+    panel: str
+    point: tuple[float, float, float]
+    mass: float
+    patch: tuple[float, float] = (0.0, 0.0)  # [m] footprint on the panel (see Patch)
+
+
+# Patch. A spring or a mass fixed to a plate at one point sees the plate's point
+# flexibility, which for in-plane loads is unbounded (log-singular in 2D elasticity), so
+# frequencies would keep falling as the polynomial order grows. Real attachments have
+# seats, bolsters and brackets; an element with a patch (size along the panel's e1, e2)
+# follows the mean displacement of the patch (integrated exactly), which converges.
+
+
+@dataclass(frozen=True)
+class StiffnessParameter:
+    """A factor on nominal stiffness: panel rigidities of a group, or joint springs of a group."""
+    name: str
+    kind: str  # "panel" or "joint"
+    group: str
+    terms: tuple[str, ...]  # panel: rigidity names; joint: ("k_t",) or ("k_r",)
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class BoxVehicle:
+    panels: tuple[Panel, ...]
+    joints: tuple[Joint, ...]
+    bodies: tuple[RigidBody, ...]
+    links: tuple[Link, ...]
+    masses: tuple[PointMass, ...]
+    parameters: tuple[StiffnessParameter, ...]
+    joint_points: int = 0  # Gauss points per joint edge; 0: from the panel orders
+
+
+@dataclass
+class BoxModel:
+    """Assembled matrices; K(p) = K0 + sum_i p_i K_i with p = 1 the nominal vehicle."""
+    vehicle: BoxVehicle
+    names: tuple[str, ...]
+    M: sp.csr_matrix
+    C: sp.csr_matrix
+    K0: sp.csr_matrix
+    K_units: dict[str, sp.csr_matrix]
+    dof_slices: dict[str, slice]
+    n_dof: int
+    _fixed_map: dict = field(default_factory=dict, repr=False)
+
+    def stiffness(self, p) -> sp.csr_matrix:
+        p = np.asarray(p, float)
+        K = self.K0.copy()
+        for name, v in zip(self.names, p):
+            K = K + v * self.K_units[name]
+        return K.tocsr()
+
+    def displacement(self, body: str, point) -> np.ndarray:
+        """(3, n_dof) operator: carbody-frame displacement of a material point."""
+        return _point_operator(self, body, point, rotation=False)
+
+    def panel(self, name: str) -> Panel:
+        return next(p for p in self.vehicle.panels if p.name == name)
+
+
+def _local_operator(model, body, point, rotation=False, patch=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """(dof indices, 3 x len(indices) operator) of a material point of ``body``, or the
+    mean over a patch of that size around it (panels only)."""
+    if body == "ground":
+        return np.zeros(0, int), np.zeros((3, 0))
+    panels = {p.name: p for p in model.vehicle.panels}
+    s = model.dof_slices.get(body)
+    if s is None:
+        raise KeyError(f"no panel or rigid body named {body!r}")
+    idx = np.arange(s.start, s.stop)
+    if body in panels:
+        pn = panels[body]
+        op = pn.rotation if rotation else pn.displacement
+        if not any(patch):
+            return idx, op(point)
+        xg, wg = legendre.leggauss(max(pn.order) + 1)  # the patch mean, exact for the basis
+        p0 = np.asarray(point, float)
+        G = 0.0
+        for x, wx in zip(xg, wg):
+            for y, wy in zip(xg, wg):
+                q = p0 + pn.axes[:, 0] * x * patch[0] / 2 + pn.axes[:, 1] * y * patch[1] / 2
+                G = G + wx * wy / 4 * op(q)
+        return idx, G
+    if rotation:
+        raise ValueError("rotation operators are for panels")
+    rb = next(b for b in model.vehicle.bodies if b.name == body)
+    free = [i for i, d in enumerate(RIGID_DOFS) if d not in rb.fixed]
+    return idx, rb.operator(point)[:, free]
+
+
+def _point_operator(model, body, point, rotation=False) -> np.ndarray:
+    idx, G = _local_operator(model, body, point, rotation)
+    out = np.zeros((3, model.n_dof))
+    out[:, idx] = G
+    return out
+
+
+def _difference(model, body_a, point_a, body_b, point_b, rotation=False, patch=(0.0, 0.0)):
+    """(indices, operator) of the relative motion of two material points."""
+    ia, Ga = _local_operator(model, body_a, point_a, rotation, patch)
+    ib, Gb = _local_operator(model, body_b, point_b, rotation)
+    idx = np.union1d(ia, ib)
+    D = np.zeros((3, idx.size))
+    D[:, np.searchsorted(idx, ia)] += Ga
+    D[:, np.searchsorted(idx, ib)] -= Gb
+    return idx, D
+
+
+class _Triplets:
+    def __init__(self, n):
+        self.n, self.rows, self.cols, self.vals = n, [], [], []
+
+    def add(self, idx, block):
+        r, c = np.meshgrid(idx, idx, indexing="ij")
+        self.rows.append(r.ravel())
+        self.cols.append(c.ravel())
+        self.vals.append(np.asarray(block).ravel())
+
+    def matrix(self) -> sp.csr_matrix:
+        if not self.rows:
+            return sp.csr_matrix((self.n, self.n))
+        A = sp.coo_matrix((np.concatenate(self.vals), (np.concatenate(self.rows), np.concatenate(self.cols))),
+                          shape=(self.n, self.n)).tocsr()
+        A.sum_duplicates()
+        return A
+
+
+def assemble(vehicle: BoxVehicle) -> BoxModel:
+    slices, n = {}, 0
+    for pn in vehicle.panels:
+        slices[pn.name] = slice(n, n + pn.n_dof)
+        n += pn.n_dof
+    for rb in vehicle.bodies:
+        k = sum(d not in rb.fixed for d in RIGID_DOFS)
+        slices[rb.name] = slice(n, n + k)
+        n += k
+    names = tuple(p.name for p in vehicle.parameters)
+    if len(set(names)) != len(names):
+        raise ValueError("parameter names must be unique")
+    model = BoxModel(vehicle, names, None, None, None, {}, slices, n)
+    M, C, K0 = _Triplets(n), _Triplets(n), _Triplets(n)
+    K_units = {name: _Triplets(n) for name in names}
+
+    def owner(kind, group, term):
+        hits = [q.name for q in vehicle.parameters if q.kind == kind and q.group == group and term in q.terms]
+        if len(hits) > 1:
+            raise ValueError(f"{kind} {group} {term} is scaled by several parameters: {hits}")
+        return K0 if not hits else K_units[hits[0]]
+
+    for pn in vehicle.panels:
+        idx = np.arange(slices[pn.name].start, slices[pn.name].stop)
+        M.add(idx, pn.rho_h * pn.unit_mass())
+        units = pn.unit_stiffness()
+        for term in MEMBRANE + BENDING:
+            owner("panel", pn.group, term).add(idx, pn.rigidity[term] * units[term])
+
+    for rb in vehicle.bodies:
+        idx = np.arange(slices[rb.name].start, slices[rb.name].stop)
+        free = [i for i, d in enumerate(RIGID_DOFS) if d not in rb.fixed]
+        M.add(idx, np.diag([rb.mass] * 3 + list(rb.inertia))[np.ix_(free, free)])
+
+    for pm in vehicle.masses:
+        idx, G = _local_operator(model, pm.panel, pm.point, patch=pm.patch)
+        M.add(idx, pm.mass * (G.T @ G))
+
+    for jt in vehicle.joints:
+        pa, pb = model.panel(jt.panel_a), model.panel(jt.panel_b)
+        p0, p1 = np.asarray(jt.start, float), np.asarray(jt.end, float)
+        length = float(np.linalg.norm(p1 - p0))
+        t = (p1 - p0) / length
+        npts = vehicle.joint_points or (max(pa.order + pb.order) + 2)
+        xg, wg = legendre.leggauss(npts)
+        Kt = Kr = 0.0
+        for x, w in zip(xg, wg):
+            point = p0 + (x + 1) / 2 * (p1 - p0)
+            weight = w * length / 2
+            idx, D = _difference(model, pa.name, point, pb.name, point)
+            _, R = _difference(model, pa.name, point, pb.name, point, rotation=True)
+            r = t @ R
+            Kt = Kt + weight * (D.T @ D)
+            Kr = Kr + weight * np.outer(r, r)
+        owner("joint", jt.group, "k_t").add(idx, jt.k_t * Kt)
+        owner("joint", jt.group, "k_r").add(idx, jt.k_r * Kr)
+
+    for ln in vehicle.links:
+        idx, D = _difference(model, ln.body_a, ln.point_a, ln.body_b, ln.point_b, patch=ln.patch)
+        K0.add(idx, D.T @ np.diag(ln.k) @ D)
+        if any(ln.c):
+            C.add(idx, D.T @ np.diag(ln.c) @ D)
+
+    model.M, model.C, model.K0 = M.matrix(), C.matrix(), K0.matrix()
+    model.K_units = {k: v.matrix() for k, v in K_units.items()}
+    return model

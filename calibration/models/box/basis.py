@@ -1,0 +1,46 @@
+"""Orthonormal Legendre polynomials on [-1, 1] and their exact 1D integrals.
+
+A panel's fields are double series p_i(xi) p_j(eta) of the orthonormal Legendre
+polynomials p_i = sqrt((2 i + 1) / 2) P_i, so every energy integral over the rectangle
+is a Kronecker product of 1D integrals E[r, s][i, k] = int p_i^(r) p_k^(s) dxi, computed
+once per order by Gauss-Legendre quadrature that is exact for the polynomial degree.
+Orders 0 and 1 hold the rigid motions, so each panel carries its six rigid degrees of
+freedom (seed section 2.1).
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numpy.polynomial import legendre
+
+
+def _coefficients(order: int) -> list[np.ndarray]:
+    out = []
+    for i in range(order + 1):
+        c = np.zeros(i + 1)
+        c[i] = np.sqrt((2 * i + 1) / 2)
+        out.append(c)
+    return out
+
+
+def values(order: int, x: np.ndarray, derivative: int = 0) -> np.ndarray:
+    """(len(x), order + 1): the ``derivative``-th derivative of p_0 .. p_order at x."""
+    x = np.atleast_1d(np.asarray(x, float))
+    cols = []
+    for c in _coefficients(order):
+        d = legendre.legder(c, derivative) if derivative else c
+        cols.append(legendre.legval(x, d) if d.size else np.zeros_like(x))
+    return np.stack(cols, axis=1)
+
+
+@lru_cache(maxsize=None)
+def integrals(order: int) -> dict[tuple[int, int], np.ndarray]:
+    """E[(r, s)] = int_{-1}^{1} p_i^(r) p_k^(s) dxi for r, s in 0..2, each (order+1)^2."""
+    xg, wg = legendre.leggauss(order + 2)  # exact up to degree 2 order + 3
+    V = [values(order, xg, r) for r in range(3)]
+    out = {}
+    for r in range(3):
+        for s in range(3):
+            out[(r, s)] = (V[r] * wg[:, None]).T @ V[s]
+    return out

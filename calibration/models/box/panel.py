@@ -1,0 +1,148 @@
+"""One orthotropic plate panel of the box-type carbody, with exact unit energy matrices.
+
+A panel is a flat rectangle of length ``a`` along its first axis e1 and ``b`` along e2,
+centred at ``centre`` of the carbody frame, its normal e3 = e1 x e2. It carries three
+fields over (xi, eta) in [-1, 1]^2, x = a xi / 2, y = b eta / 2:
+
+    u (along e1), v (along e2): in-plane (membrane), w (along e3): out of plane (bending),
+
+each a double Legendre series of orders (n_xi, n_eta) (see ``basis``). The generalised
+coordinates are the series coefficients, ordered [u..., v..., w...], index i * (n_eta+1) + j.
+
+Energies (smeared properties of skin and stiffeners, SI):
+    T = 1/2 rho_h int (u'^2 + v'^2 + w'^2) dA
+    U = 1/2 int (A11 u_x^2 + 2 A12 u_x v_y + A22 v_y^2 + A66 (u_y + v_x)^2) dA
+      + 1/2 int (D11 w_xx^2 + 2 D12 w_xx w_yy + D22 w_yy^2 + 4 D66 w_xy^2) dA
+The stiffness is linear in the eight rigidities, so :meth:`Panel.unit_stiffness` returns
+one exact matrix per rigidity (Kronecker products of 1D integrals) and nothing is ever
+re-integrated when a rigidity changes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from . import basis
+
+MEMBRANE = ("A11", "A22", "A12", "A66")
+BENDING = ("D11", "D22", "D12", "D66")
+RIGIDITIES = MEMBRANE + BENDING
+
+
+@dataclass(frozen=True, eq=False)
+class Panel:
+    name: str
+    group: str  # panels of a group share their rigidity parameters (roof, floor, side, end)
+    centre: tuple[float, float, float]  # [m] in the carbody frame
+    e1: tuple[float, float, float]  # unit vector of the panel's first axis
+    e2: tuple[float, float, float]  # unit vector of the second axis (orthogonal to e1)
+    a: float  # [m] length along e1
+    b: float  # [m] length along e2
+    order: tuple[int, int]  # Legendre orders (n_xi, n_eta) of every field
+    rho_h: float  # [kg/m^2] areal mass
+    rigidity: dict  # A11, A22, A12, A66 [N/m]; D11, D22, D12, D66 [N m]
+
+    def __post_init__(self):
+        R = self.axes
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-12):
+            raise ValueError(f"panel {self.name}: e1 and e2 must be orthonormal")
+        if min(self.order) < 1:
+            raise ValueError(f"panel {self.name}: orders must be >= 1 to hold the rigid motions")
+        if self.a <= 0 or self.b <= 0 or self.rho_h <= 0:
+            raise ValueError(f"panel {self.name}: a, b and rho_h must be positive")
+        missing = set(RIGIDITIES) - set(self.rigidity)
+        if missing:
+            raise ValueError(f"panel {self.name}: rigidities {sorted(missing)} missing")
+
+    @cached_property
+    def axes(self) -> np.ndarray:
+        """3 x 3, columns e1, e2, e3 in the carbody frame."""
+        e1, e2 = np.asarray(self.e1, float), np.asarray(self.e2, float)
+        return np.column_stack([e1, e2, np.cross(e1, e2)])
+
+    @property
+    def n_terms(self) -> int:
+        return (self.order[0] + 1) * (self.order[1] + 1)
+
+    @property
+    def n_dof(self) -> int:
+        return 3 * self.n_terms
+
+    @property
+    def mass(self) -> float:
+        return self.rho_h * self.a * self.b
+
+    # -- energy matrices --------------------------------------------------------------
+    def unit_mass(self) -> np.ndarray:
+        """Mass matrix for rho_h = 1: (a b / 4) I, the basis being orthonormal."""
+        return np.eye(self.n_dof) * self.a * self.b / 4
+
+    def unit_stiffness(self) -> dict[str, np.ndarray]:
+        """One (n_dof, n_dof) matrix per rigidity, for that rigidity = 1."""
+        Ex, Ey = basis.integrals(self.order[0]), basis.integrals(self.order[1])
+        a, b, n = self.a, self.b, self.n_terms
+
+        def kron(r, s, p, q):
+            return np.kron(Ex[(r, s)], Ey[(p, q)])
+
+        def block(**blocks):
+            K = np.zeros((3 * n, 3 * n))
+            for key, val in blocks.items():
+                i, j = "uvw".index(key[0]), "uvw".index(key[1])
+                K[i * n:(i + 1) * n, j * n:(j + 1) * n] += val
+            return K
+
+        uv = kron(1, 0, 0, 1)  # int u_x v_y (the 2 a b / 4 / (a b / 4) scale factors cancel)
+        uyvx = kron(0, 1, 1, 0)  # int u_y v_x
+        return {
+            "A11": block(uu=(b / a) * kron(1, 1, 0, 0)),
+            "A22": block(vv=(a / b) * kron(0, 0, 1, 1)),
+            "A12": block(uv=uv, vu=uv.T),
+            "A66": block(uu=(a / b) * kron(0, 0, 1, 1), vv=(b / a) * kron(1, 1, 0, 0), uv=uyvx, vu=uyvx.T),
+            "D11": block(ww=(4 * b / a**3) * kron(2, 2, 0, 0)),
+            "D22": block(ww=(4 * a / b**3) * kron(0, 0, 2, 2)),
+            "D12": block(ww=(4 / (a * b)) * (kron(2, 0, 0, 2) + kron(0, 2, 2, 0))),
+            "D66": block(ww=(16 / (a * b)) * kron(1, 1, 1, 1)),
+        }
+
+    def stiffness(self, scale: dict[str, float] | None = None) -> np.ndarray:
+        """Stiffness with this panel's rigidities, each times ``scale[rigidity]`` (default 1)."""
+        scale = scale or {}
+        units = self.unit_stiffness()
+        return sum(self.rigidity[k] * scale.get(k, 1.0) * units[k] for k in RIGIDITIES)
+
+    # -- kinematics at points ---------------------------------------------------------
+    def local(self, point) -> tuple[float, float]:
+        """(xi, eta) of a carbody-frame point lying in the panel's plane."""
+        d = np.asarray(point, float) - np.asarray(self.centre, float)
+        if abs(d @ self.axes[:, 2]) > 1e-9 * max(self.a, self.b, 1.0):
+            raise ValueError(f"point {point} is not in the plane of panel {self.name}")
+        xi, eta = 2 * (d @ self.axes[:, 0]) / self.a, 2 * (d @ self.axes[:, 1]) / self.b
+        if abs(xi) > 1 + 1e-9 or abs(eta) > 1 + 1e-9:
+            raise ValueError(f"point {point} lies outside panel {self.name}")
+        return float(xi), float(eta)
+
+    def _shape(self, xi, eta, dx=0, dy=0) -> np.ndarray:
+        px = basis.values(self.order[0], [xi], dx)[0] * (2 / self.a) ** dx
+        py = basis.values(self.order[1], [eta], dy)[0] * (2 / self.b) ** dy
+        return np.kron(px, py)
+
+    def displacement(self, point) -> np.ndarray:
+        """(3, n_dof): carbody-frame displacement of the panel's material point at ``point``."""
+        phi = self._shape(*self.local(point))
+        z = np.zeros_like(phi)
+        local = np.array([np.concatenate([phi, z, z]), np.concatenate([z, phi, z]), np.concatenate([z, z, phi])])
+        return self.axes @ local
+
+    def rotation(self, point) -> np.ndarray:
+        """(3, n_dof): small rotation vector at ``point`` in the carbody frame: the normal's
+        tilt (w_y, -w_x) and the in-plane drilling rotation (v_x - u_y) / 2."""
+        xi, eta = self.local(point)
+        px, py = self._shape(xi, eta, dx=1), self._shape(xi, eta, dy=1)
+        z = np.zeros_like(px)
+        local = np.array([np.concatenate([z, z, py]),
+                          np.concatenate([z, z, -px]),
+                          np.concatenate([-py / 2, px / 2, z])])
+        return self.axes @ local

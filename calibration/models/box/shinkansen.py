@@ -1,0 +1,179 @@
+"""A Shinkansen-type test vehicle as an extended box-type model (seed section 3.1).
+
+The seed gives no dimensions, masses or rigidities. Every number below is an assumption
+stated here once, chosen to be typical of an aluminium double-skin Shinkansen carbody:
+
+* Shell: 24.5 m long, 3.38 m wide (the Shinkansen body width), floor 1.10 m and roof
+  3.55 m above the rail (2.45 m shell height); flat roof (a curved roof is a later term).
+  Floor split at x = +-5.0 m into front, middle and rear panels (seed Figure 1a).
+* Bogie centres at x = +-8.75 m (17.5 m spacing), wheelbase 2.5 m, axle boxes and air
+  springs at y = +-1.0 m, yaw dampers at y = +-1.35 m.
+* Smeared rigidities from double-skin extrusions, E = 70 GPa, nu = 0.3:
+  membrane A = E t / (1 - nu^2) with t the two skins together, bending
+  D = 2 E t_s (h/2)^2 / (1 - nu^2) with skin t_s and panel depth h; ribs along x make the
+  x-direction stiffer; side panels lose membrane and shear stiffness to the windows.
+* Areal masses include interior and seats (the test car has them, seed section 3.1);
+  the car has no underfloor equipment, so eight 1 t iron blocks hang under the floor.
+* Stationary on the rails (seed Figure 3): wheelsets held, so the axle springs and
+  axle-box supports act between the bogie frames and the ground.
+
+``SEARCH_PARAMETERS`` are the factors PSO searches (nominal 1): membrane and bending
+rigidity of roof, floor and sides, the ends together, and the joint springs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from .assembly import BoxVehicle, Joint, Link, PointMass, RigidBody, StiffnessParameter
+from .panel import Panel
+
+
+@dataclass(frozen=True)
+class Geometry:
+    length: float = 24.5
+    width: float = 3.38
+    floor_z: float = 1.10
+    roof_z: float = 3.55
+    floor_split: float = 5.0
+    bogie_x: float = 8.75
+    semi_wheelbase: float = 1.25
+    spring_y: float = 1.0
+    damper_y: float = 1.35
+    bogie_z: float = 0.65
+
+
+def _orthotropic(E_t_x, E_t_y, shear_factor, D_x, D_y, nu=0.3):
+    """Smeared plate properties: membrane from the effective skin thickness along x and y
+    (as E t), bending from the skin-pair stiffness along x and y (as D)."""
+    f = 1 / (1 - nu**2)
+    A11, A22 = f * E_t_x, f * E_t_y
+    A12 = nu * (A11 * A22) ** 0.5
+    A66 = shear_factor * (E_t_x * E_t_y) ** 0.5 / (2 * (1 + nu))
+    D12 = nu * (D_x * D_y) ** 0.5
+    D66 = (1 - nu) / 2 * (D_x * D_y) ** 0.5
+    return {"A11": A11, "A22": A22, "A12": A12, "A66": A66, "D11": D_x, "D22": D_y, "D12": D12, "D66": D66}
+
+
+E_AL = 70e9
+# per group: (E t_x, E t_y, shear factor, D_x, D_y) [N/m, N/m, -, N m, N m], areal mass [kg/m^2]
+MATERIAL = {
+    "roof": (_orthotropic(E_AL * 0.0045, E_AL * 0.0035, 1.0, 4.0e5, 8.0e5), 35.0),
+    "floor": (_orthotropic(E_AL * 0.0060, E_AL * 0.0045, 1.0, 5.0e5, 2.0e6), 80.0),
+    "side": (_orthotropic(E_AL * 0.0045, E_AL * 0.0035, 0.5, 2.0e5, 3.0e5), 40.0),
+    "end": (_orthotropic(E_AL * 0.0050, E_AL * 0.0050, 1.0, 5.0e5, 5.0e5), 60.0),
+}
+JOINTS = {  # k_t [N/m per m], k_r [N m/rad per m]
+    "roof_side": (1.0e9, 3.0e5),
+    "floor_side": (1.0e9, 5.0e5),
+    "floor_floor": (1.0e9, 1.0e6),
+    "end": (1.0e9, 3.0e5),
+}
+ORDERS = {  # Legendre orders (along e1, along e2) per panel: first 12 elastic modes converged
+    # to 0.1 % (scripts/check_box_convergence.py); 2709 DOF with the bogies
+    "roof": (16, 6), "side_left": (20, 6), "side_right": (20, 6),
+    "floor_front": (14, 8), "floor_middle": (15, 8), "floor_rear": (14, 8),
+    "end_front": (5, 5), "end_rear": (5, 5),
+}
+BOGIE = dict(mass=2500.0, inertia=(1200.0, 1800.0, 2500.0))
+SUSPENSION = {  # per element; [N/m] and [N s/m] along x, y, z; seat size on the floor [m]
+    "axle_box": dict(k=(1.0e7, 4.0e6, 1.2e6), c=(0.0, 0.0, 1.5e4)),
+    "air_spring": dict(k=(1.8e5, 1.8e5, 4.0e5), c=(0.0, 3.0e4, 2.0e4), patch=(0.6, 0.6)),
+    "traction_link": dict(k=(1.0e7, 0.0, 0.0), c=(0.0, 0.0, 0.0), patch=(0.4, 2.0)),  # on the bolster
+    "yaw_damper": dict(k=(0.0, 0.0, 0.0), c=(2.0e5, 0.0, 0.0), patch=(0.4, 0.4)),
+}
+IRON_BLOCKS = tuple((x, y, 1000.0) for x in (-6.0, -2.0, 2.0, 6.0) for y in (-0.9, 0.9))
+IRON_BLOCK_FOOTPRINT = (1.0, 1.5)  # [m] hung from two crossbeams between the centre sill and a side sill
+
+SEARCH_PARAMETERS = (
+    StiffnessParameter("roof_membrane", "panel", "roof", ("A11", "A22", "A12", "A66"), "roof in-plane rigidity"),
+    StiffnessParameter("roof_bending", "panel", "roof", ("D11", "D22", "D12", "D66"), "roof bending rigidity"),
+    StiffnessParameter("floor_membrane", "panel", "floor", ("A11", "A22", "A12", "A66"), "floor in-plane rigidity"),
+    StiffnessParameter("floor_bending", "panel", "floor", ("D11", "D22", "D12", "D66"), "floor bending rigidity"),
+    StiffnessParameter("side_membrane", "panel", "side", ("A11", "A22", "A12"), "side in-plane normal rigidity"),
+    StiffnessParameter("side_shear", "panel", "side", ("A66",), "side in-plane shear rigidity"),
+    StiffnessParameter("side_bending", "panel", "side", ("D11", "D22", "D12", "D66"), "side bending rigidity"),
+    StiffnessParameter("end_rigidity", "panel", "end", ("A11", "A22", "A12", "A66", "D11", "D22", "D12", "D66"),
+                       "end panels, membrane and bending"),
+    StiffnessParameter("roof_side_k_r", "joint", "roof_side", ("k_r",), "roof-side joint rotational spring"),
+    StiffnessParameter("floor_side_k_r", "joint", "floor_side", ("k_r",), "floor-side joint rotational spring"),
+    StiffnessParameter("roof_side_k_t", "joint", "roof_side", ("k_t",), "roof-side joint translational spring"),
+    StiffnessParameter("floor_side_k_t", "joint", "floor_side", ("k_t",), "floor-side joint translational spring"),
+)
+
+
+def shinkansen_vehicle(geometry: Geometry = Geometry(), orders: dict | None = None,
+                       order_increase: int = 0, parameters=SEARCH_PARAMETERS) -> BoxVehicle:
+    """The assumed Shinkansen-type test vehicle; ``orders`` overrides panel orders,
+    ``order_increase`` adds to every order (convergence studies)."""
+    g = geometry
+    o = dict(ORDERS, **(orders or {}))
+    o = {k: (v[0] + order_increase, v[1] + order_increase) for k, v in o.items()}
+    L, W, zf, zr = g.length, g.width, g.floor_z, g.roof_z
+    H, xs = zr - zf, g.floor_split
+    X, Y, Z, mX, mY = (1, 0, 0), (0, 1, 0), (0, 0, 1), (-1, 0, 0), (0, -1, 0)
+
+    def panel(name, group, centre, e1, e2, a, b):
+        rig, rho = MATERIAL[group]
+        return Panel(name, group, centre, e1, e2, a, b, o[name], rho, rig)
+
+    front_len = L / 2 - xs
+    panels = (
+        panel("roof", "roof", (0, 0, zr), X, Y, L, W),
+        panel("floor_front", "floor", (xs + front_len / 2, 0, zf), X, Y, front_len, W),
+        panel("floor_middle", "floor", (0, 0, zf), X, Y, 2 * xs, W),
+        panel("floor_rear", "floor", (-xs - front_len / 2, 0, zf), X, Y, front_len, W),
+        panel("side_left", "side", (0, W / 2, zf + H / 2), X, Z, L, H),
+        panel("side_right", "side", (0, -W / 2, zf + H / 2), X, Z, L, H),
+        panel("end_front", "end", (L / 2, 0, zf + H / 2), Y, Z, W, H),
+        panel("end_rear", "end", (-L / 2, 0, zf + H / 2), mY, Z, W, H),
+    )
+    del mX
+    joints = []
+
+    def joint(group, a, b, p0, p1):
+        kt, kr = JOINTS[group]
+        joints.append(Joint(group, a, b, p0, p1, kt, kr))
+
+    for side, y in (("side_left", W / 2), ("side_right", -W / 2)):
+        joint("roof_side", "roof", side, (-L / 2, y, zr), (L / 2, y, zr))
+        joint("floor_side", "floor_rear", side, (-L / 2, y, zf), (-xs, y, zf))
+        joint("floor_side", "floor_middle", side, (-xs, y, zf), (xs, y, zf))
+        joint("floor_side", "floor_front", side, (xs, y, zf), (L / 2, y, zf))
+    joint("floor_floor", "floor_rear", "floor_middle", (-xs, -W / 2, zf), (-xs, W / 2, zf))
+    joint("floor_floor", "floor_middle", "floor_front", (xs, -W / 2, zf), (xs, W / 2, zf))
+    for end, x, floor in (("end_front", L / 2, "floor_front"), ("end_rear", -L / 2, "floor_rear")):
+        joint("end", end, "roof", (x, -W / 2, zr), (x, W / 2, zr))
+        joint("end", end, floor, (x, -W / 2, zf), (x, W / 2, zf))
+        joint("end", end, "side_left", (x, W / 2, zf), (x, W / 2, zr))
+        joint("end", end, "side_right", (x, -W / 2, zf), (x, -W / 2, zr))
+
+    bodies, links = [], []
+    for i, xb in ((1, g.bogie_x), (2, -g.bogie_x)):
+        name = f"bogie{i}"
+        floor = "floor_front" if xb > 0 else "floor_rear"
+        bodies.append(RigidBody(name, BOGIE["mass"], BOGIE["inertia"], (xb, 0.0, g.bogie_z)))
+        for dx in (g.semi_wheelbase, -g.semi_wheelbase):
+            for y in (g.spring_y, -g.spring_y):
+                p = (xb + dx, y, g.bogie_z)
+                links.append(Link(f"{name}_axle_box_{dx:+.2f}_{y:+.1f}", "axle_box", "ground", p, name, p,
+                                  **SUSPENSION["axle_box"]))
+        for y in (g.spring_y, -g.spring_y):
+            links.append(Link(f"{name}_air_spring_{y:+.1f}", "air_spring", floor, (xb, y, zf), name,
+                              (xb, y, g.bogie_z), **SUSPENSION["air_spring"]))
+        links.append(Link(f"{name}_traction_link", "traction_link", floor, (xb, 0.0, zf), name,
+                          (xb, 0.0, g.bogie_z), **SUSPENSION["traction_link"]))
+        for y in (g.damper_y, -g.damper_y):
+            links.append(Link(f"{name}_yaw_damper_{y:+.2f}", "yaw_damper", floor, (xb, y, zf), name,
+                              (xb, y, g.bogie_z), **SUSPENSION["yaw_damper"]))
+
+    def floor_panel(x):
+        return "floor_front" if x > xs else "floor_rear" if x < -xs else "floor_middle"
+
+    masses = tuple(PointMass(f"iron_block_{x:+.0f}_{y:+.1f}", floor_panel(x), (x, y, zf), m, IRON_BLOCK_FOOTPRINT)
+                   for x, y, m in IRON_BLOCKS)
+    return BoxVehicle(tuple(panels), tuple(joints), tuple(bodies), tuple(links), masses, tuple(parameters))
+
+
+def free_carbody(vehicle: BoxVehicle) -> BoxVehicle:
+    """The carbody alone, free in space (no bogies, no suspension): six rigid modes."""
+    return replace(vehicle, bodies=(), links=())

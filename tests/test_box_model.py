@@ -1,0 +1,129 @@
+"""The extended box-type carbody model: plates, joints and the assembled vehicle agree
+with closed forms and with the physics they encode."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from calibration.models.box import assemble, free_carbody, shinkansen_vehicle
+from calibration.models.box.assembly import BoxVehicle, Joint, StiffnessParameter
+from calibration.models.box.panel import Panel
+
+STRIP = dict(A11=3e8, A22=2e8, A12=0.0, A66=1e8, D11=2e5, D22=1e5, D12=0.0, D66=5e4)
+
+
+def _frequencies(model, p=None, n=None):
+    p = np.ones(len(model.names)) if p is None else p
+    K, M = model.stiffness(p).toarray(), model.M.toarray()
+    w2 = scipy.linalg.eigh(K, M, eigvals_only=True, subset_by_index=None if n is None else [0, n - 1])
+    return np.sign(w2) * np.sqrt(np.abs(w2)) / (2 * np.pi)
+
+
+def _strip(name="strip", centre=(0.0, 0.0, 0.0), a=6.0, order=(12, 2)):
+    return Panel(name, "plate", centre, (1, 0, 0), (0, 1, 0), a, 0.5, order, 40.0, STRIP)
+
+
+def _alone(*panels, joints=(), parameters=()):
+    return assemble(BoxVehicle(tuple(panels), tuple(joints), (), (), (), tuple(parameters)))
+
+
+def test_a_free_panel_has_exactly_its_six_rigid_motions_at_zero_frequency():
+    f = _frequencies(_alone(_strip()), n=8)
+    assert np.all(np.abs(f[:6]) < 1e-3) and f[6] > 1.0
+
+
+def test_free_free_strip_extension_and_bending_match_the_bar_and_beam_closed_forms():
+    a, rho_h = 6.0, 40.0
+    f = _frequencies(_alone(_strip(a=a)))
+    bar = np.sqrt(STRIP["A11"] / rho_h) / (2 * a)  # first extensional mode of a free-free bar
+    beam = 4.730040745**2 / (2 * np.pi * a**2) * np.sqrt(STRIP["D11"] / rho_h)  # free-free Euler beam
+    assert np.min(np.abs(f - bar)) / bar < 1e-6
+    assert np.min(np.abs(f - beam)) / beam < 1e-6
+
+
+def _halves(k_t, k_r):
+    left = _strip("left", (-1.5, 0, 0), a=3.0, order=(8, 2))
+    right = _strip("right", (1.5, 0, 0), a=3.0, order=(8, 2))
+    joint = Joint("middle", "left", "right", (0, -0.25, 0), (0, 0.25, 0), k_t, k_r)
+    return _alone(left, right, joints=[joint])
+
+
+def test_two_halves_joined_stiffly_behave_as_one_panel():
+    whole = _frequencies(_alone(_strip(a=6.0, order=(16, 2))), n=12)
+    joined = _frequencies(_halves(k_t=1e12, k_r=1e10), n=12)
+    np.testing.assert_allclose(joined[6:], whole[6:], rtol=2e-3)
+
+
+def test_the_rotational_spring_alone_sets_the_bending_coupling_across_a_joint():
+    # k_r = 0 leaves a hinge: a seventh zero-frequency motion; k_t alone cannot stop it
+    hinge = _frequencies(_halves(k_t=1e12, k_r=0.0), n=8)
+    assert np.sum(np.abs(hinge) < 1e-2) == 7
+    stiff = _frequencies(_halves(k_t=1e12, k_r=1e10), n=8)
+    assert np.sum(np.abs(stiff) < 1e-2) == 6
+
+
+@pytest.fixture(scope="module")
+def vehicle():
+    return shinkansen_vehicle()
+
+
+@pytest.fixture(scope="module")
+def carbody(vehicle):
+    return assemble(free_carbody(replace(vehicle, panels=tuple(
+        replace(p, order=(max(p.order[0] // 2, 3), max(p.order[1] // 2, 3))) for p in vehicle.panels))))
+
+
+def test_the_full_model_has_between_1000_and_3500_degrees_of_freedom(vehicle):
+    n = sum(p.n_dof for p in vehicle.panels) + 6 * len(vehicle.bodies)
+    assert 1000 <= n <= 3500
+
+
+def test_the_free_carbody_has_six_rigid_modes_no_joint_strains_under_rigid_motion(carbody):
+    f = _frequencies(carbody, n=8)
+    assert np.all(np.abs(f[:6]) < 1e-3) and f[6] > 1.0
+
+
+def test_the_mass_matrix_carries_the_panel_and_iron_block_masses(carbody):
+    q = np.zeros(carbody.n_dof)
+    for pn in carbody.vehicle.panels:  # uniform vertical translation: p0(xi) p0(eta) = 1/2
+        s = carbody.dof_slices[pn.name]
+        local = pn.axes.T @ np.array([0.0, 0.0, 1.0])
+        for field in range(3):
+            q[s.start + field * pn.n_terms] = 2 * local[field]
+    expected = sum(p.mass for p in carbody.vehicle.panels) + sum(m.mass for m in carbody.vehicle.masses)
+    assert q @ carbody.M @ q == pytest.approx(expected, rel=1e-12)
+    assert np.allclose(carbody.stiffness(np.ones(len(carbody.names))) @ q, 0, atol=1e-6 * expected)
+
+
+def test_scaling_a_parameter_equals_reassembling_with_scaled_rigidities(carbody):
+    i = carbody.names.index("roof_bending")
+    p = np.ones(len(carbody.names))
+    p[i] = 2.0
+    doubled = replace(carbody.vehicle, panels=tuple(
+        replace(pn, rigidity={k: v * (2.0 if k.startswith("D") else 1.0) for k, v in pn.rigidity.items()})
+        if pn.group == "roof" else pn for pn in carbody.vehicle.panels))
+    np.testing.assert_allclose(_frequencies(carbody, p, n=20), _frequencies(assemble(doubled), n=20),
+                               rtol=1e-9, atol=1e-6)
+
+
+def test_parameters_must_not_scale_the_same_rigidity_twice():
+    twice = (StiffnessParameter("a", "panel", "plate", ("D11",)), StiffnessParameter("b", "panel", "plate", ("D11",)))
+    with pytest.raises(ValueError, match="several parameters"):
+        _alone(_strip(), parameters=twice)
+
+
+def test_the_rigid_carbody_bounces_on_its_suspension_as_the_two_mass_closed_form(vehicle):
+    # every searched rigidity and joint spring x 1000: the carbody's vertical mode on the air
+    # springs in series with the bogie frames on the axle springs
+    from calibration.models.box.shinkansen import BOGIE, SUSPENSION
+    coarse = replace(vehicle, panels=tuple(replace(p, order=(3, 3)) for p in vehicle.panels))
+    model = assemble(coarse)
+    f = _frequencies(model, np.full(len(model.names), 1000.0), n=12)
+    m_c = sum(pn.mass for pn in coarse.panels) + sum(m.mass for m in coarse.masses)
+    k_s = 4 * SUSPENSION["air_spring"]["k"][2]
+    k_p = 8 * SUSPENSION["axle_box"]["k"][2]
+    Mm = np.diag([m_c, 2 * BOGIE["mass"]])
+    Kk = np.array([[k_s, -k_s], [-k_s, k_s + k_p]])
+    bounce = np.sqrt(scipy.linalg.eigh(Kk, Mm, eigvals_only=True)[0]) / (2 * np.pi)
+    assert np.min(np.abs(f - bounce)) / bounce < 0.01

@@ -1,0 +1,216 @@
+"""Experimental modal analysis of a shaker test against the modal model that generated it.
+
+Truth: six modes between 9 and 19 Hz, two of them close (15.8 and 16.2 Hz, closer than
+their half-power bandwidths), 1-3 % damping, 20 accelerometers with random real shapes,
+one force with random modal participations. Accelerances are computed exactly on a grid,
+and a 600 s shaker test is simulated exactly (first-order-hold discretisation of each
+mode) with band-random force 5-50 Hz at 200 Hz and 5 % noise on every accelerometer.
+"""
+import numpy as np
+import pytest
+import scipy.signal
+
+from calibration.identification.ema import (FRFEstimate, Mode, auto_mac, frf_h1, lscf, mac, mode_shapes,
+                                            peak_picking, plot_mac, plot_stabilisation)
+
+F_N = np.array([9.2, 11.5, 13.4, 15.8, 16.2, 18.5])  # [Hz]
+ZETA = np.array([0.020, 0.015, 0.025, 0.010, 0.012, 0.030])
+_rng = np.random.default_rng(7)
+PHI = _rng.standard_normal((20, 6))  # mass-normalised shapes at the accelerometers
+PHI_F = _rng.uniform(0.6, 1.4, 6) * _rng.choice([-1.0, 1.0], 6)  # shapes at the shaker
+BAND = (7.0, 22.0)  # [Hz]
+ORDERS = range(12, 61, 2)
+FS = 200.0  # [Hz]
+# modal overlap: half-power bandwidth 2 zeta f_n over the distance to the nearest mode
+OVERLAP = 2 * ZETA * F_N / np.array([np.min(np.abs(np.delete(F_N, r) - F_N[r])) for r in range(6)])
+SEPARATED = np.flatnonzero(OVERLAP < 0.4)  # 9.2, 11.5, 13.4 Hz (18.5 Hz: 0.48, the pair: 0.8-1)
+
+
+def accelerance(f: np.ndarray) -> np.ndarray:
+    """Exact A_o(f) = sum_r -w^2 phi_or phi_fr / (w_r^2 - w^2 + 2 i zeta_r w_r w) [(m/s^2)/N]."""
+    w = 2 * np.pi * np.asarray(f)[:, None]
+    wn = 2 * np.pi * F_N
+    return (-w ** 2 * PHI_F / (wn ** 2 - w ** 2 + 2j * ZETA * wn * w)) @ PHI.T
+
+
+def modal_filters():
+    """Per mode, the exact discrete-time filter force -> modal acceleration q_r'' for a
+    force linear between samples (first-order hold)."""
+    out = []
+    for wn, z, pf in zip(2 * np.pi * F_N, ZETA, PHI_F):
+        A = np.array([[0.0, 1.0], [-wn ** 2, -2 * z * wn]])
+        C = np.array([[-wn ** 2, -2 * z * wn]])
+        sys_d = scipy.signal.cont2discrete((A, np.array([[0.0], [pf]]), C, np.array([[pf]])), 1 / FS, method="foh")
+        b, a = scipy.signal.ss2tf(*sys_d[:4])
+        out.append((b[0], a))
+    return out
+
+
+def match(found: list[Mode]) -> list[Mode]:
+    """The identified mode nearest to each true frequency."""
+    f = np.array([m.frequency_hz for m in found])
+    return [found[int(np.argmin(np.abs(f - fn)))] for fn in F_N]
+
+
+@pytest.fixture(scope="module")
+def exact():
+    f = np.arange(0.0, 40.0, 0.02)
+    return f, accelerance(f)
+
+
+@pytest.fixture(scope="module")
+def shaker_test():
+    rng = np.random.default_rng(3)
+    n = int(600 * FS)
+    force = scipy.signal.sosfilt(scipy.signal.butter(4, (5, 50), "bandpass", fs=FS, output="sos"),
+                                 rng.standard_normal(n))  # [N]
+    filters = modal_filters()
+    y = np.column_stack([scipy.signal.lfilter(b, a, force) for b, a in filters]) @ PHI.T
+    y += 0.05 * y.std(axis=0) * rng.standard_normal(y.shape)  # [m/s^2]
+    est = frf_h1(force, y, FS, nperseg=4096)
+    H_d = np.column_stack([scipy.signal.freqz(b, a, worN=est.frequency, fs=FS)[1] for b, a in filters]) @ PHI.T
+    return est, H_d
+
+
+# ---------------------------------------------------------------- LSCF on exact FRFs
+
+
+def test_lscf_recovers_all_six_modes_from_exact_accelerances(exact):
+    f, H = exact
+    modes = lscf(f, H, BAND, ORDERS).select_modes()
+    assert len(modes) == 6, [m.frequency_hz for m in modes]
+    for m, fn, z in zip(match(modes), F_N, ZETA):
+        assert m.frequency_hz == pytest.approx(fn, rel=1e-3)
+        assert m.damping_ratio == pytest.approx(z, rel=0.10)
+
+
+def test_true_poles_are_stable_over_most_orders_and_low_orders_cannot_hold_six_modes(exact):
+    f, H = exact
+    stab = lscf(f, H, BAND, ORDERS)
+    assert not stab.orders[0].stable.any()  # nothing to compare the lowest order with
+    assert all(m.n_stable >= 0.8 * len(ORDERS) for m in stab.select_modes())
+    low = lscf(f, H, BAND, [4, 6, 8, 10])  # at most five conjugate pairs
+    assert len(low.select_modes(min_fraction=0.25)) < 6
+
+
+def test_lsfd_shapes_and_synthesis_match_the_truth(exact):
+    f, H = exact
+    truth = [Mode(fn, z) for fn, z in zip(F_N, ZETA)]
+    fit = mode_shapes(f, H, truth, BAND)
+    assert np.diag(mac(fit.shapes, PHI)) == pytest.approx(1.0, abs=1e-6)
+    assert np.max(np.abs(fit.shapes)) == pytest.approx(1.0)
+    assert np.allclose(fit.shapes[np.argmax(np.abs(fit.shapes), axis=0), range(6)], 1.0)
+    assert fit.relative_error.max() < 1e-6
+    assert fit.H_fit.shape == (fit.frequency.size, 20)
+
+
+# ---------------------------------------------------------------- the simulated shaker test
+
+
+def test_h1_equals_the_exact_frf_of_the_test_and_coherence_is_near_one_at_resonance(shaker_test):
+    est, H_d = shaker_test
+    assert isinstance(est, FRFEstimate) and est.n_averages == 57  # 120000 samples, 4096, 50 %
+    band = (est.frequency >= BAND[0]) & (est.frequency <= BAND[1])
+    err = np.linalg.norm(est.H[band] - H_d[band]) / np.linalg.norm(H_d[band])
+    assert err < 0.03
+    for r, fn in enumerate(F_N):
+        k = int(np.argmin(np.abs(est.frequency - fn)))
+        strong = np.abs(PHI[:, r]) >= 0.5 * np.abs(PHI[:, r]).max()  # outputs the mode moves
+        assert est.coherence[k, strong].min() > 0.9, fn
+        assert np.median(est.coherence[k]) > 0.95, fn
+
+
+@pytest.mark.parametrize("weighted", [False, True], ids=["unweighted", "coherence-weighted"])
+def test_lscf_on_noisy_h1_finds_frequencies_within_half_a_percent_and_shapes(shaker_test, weighted):
+    est, _ = shaker_test
+    w = est.coherence if weighted else None
+    modes = lscf(est.frequency, est.H, BAND, ORDERS, weights=w).select_modes()
+    assert len(modes) == 6, [m.frequency_hz for m in modes]
+    found = match(modes)
+    fit = mode_shapes(est.frequency, est.H, found, BAND, weights=w)
+    for r, (m, fn, z) in enumerate(zip(found, F_N, ZETA)):
+        assert m.frequency_hz == pytest.approx(fn, rel=5e-3)
+        assert m.damping_ratio == pytest.approx(z, rel=0.15)  # Hann leakage raises it a little
+        assert mac(fit.shapes[:, r], PHI[:, r])[0, 0] >= 0.95
+        assert mac(m.shape, PHI[:, r])[0, 0] >= 0.95  # the numerator shape of the diagram
+    assert fit.relative_error.max() < 0.1
+
+
+def test_peak_picking_finds_the_separated_modes_and_merges_the_close_pair(exact, shaker_test):
+    est, _ = shaker_test
+    for f, H in (exact, (est.frequency, est.H)):
+        modes = peak_picking(f, H, BAND, 0.3, prominence_db=1.0)
+        for r in SEPARATED:
+            m = match(modes)[r]
+            assert m.frequency_hz == pytest.approx(F_N[r], rel=5e-3)
+            assert mac(m.shape, PHI[:, r])[0, 0] >= 0.95
+        close = [m for m in modes if 15.5 <= m.frequency_hz <= 16.5]
+        assert len(close) == 1  # one peak for 15.8 and 16.2 Hz: the baseline's limit
+    assert SEPARATED.tolist() == [0, 1, 2]
+    nine = match(peak_picking(*exact, BAND, 0.3))[0]
+    assert nine.damping_ratio == pytest.approx(ZETA[0], rel=0.1)  # half-power, well separated
+
+
+def test_half_power_damping_is_none_when_the_bandwidth_is_not_resolved(exact):
+    coarse = exact[0][::25]  # 0.5 Hz lines: the 0.37 Hz half-power band of the 9.2 Hz mode falls between
+    m = match(peak_picking(coarse, accelerance(coarse), BAND, 0.3))[0]
+    assert m.damping_ratio is None
+
+
+# ---------------------------------------------------------------- MAC
+
+
+def test_mac_is_one_for_identical_zero_for_orthogonal_and_blind_to_complex_scale():
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal(20) + 1j * rng.standard_normal(20)
+    b = rng.standard_normal(20)
+    b_orth = b - (a.conj() @ b) / (a.conj() @ a) * a
+    assert mac(a, a)[0, 0] == pytest.approx(1.0)
+    assert mac(a, b_orth)[0, 0] == pytest.approx(0.0, abs=1e-14)
+    assert mac(a * (0.3 - 2.1j), b)[0, 0] == pytest.approx(mac(a, b)[0, 0])
+    q = np.linalg.qr(rng.standard_normal((20, 6)))[0]
+    assert auto_mac(q) == pytest.approx(np.eye(6), abs=1e-14)
+    assert mac(q, q[:, :3]).shape == (6, 3)
+
+
+# ---------------------------------------------------------------- figures
+
+
+def test_figures_are_written_whole(exact, tmp_path):
+    f, H = exact
+    stab = lscf(f, H, BAND, ORDERS)
+    modes = stab.select_modes()
+    p1 = plot_stabilisation(stab, f, H, tmp_path / "figs" / "stab.png", modes=modes)
+    fit = mode_shapes(f, H, modes, BAND)
+    labels = [f"{m.frequency_hz:.2f} Hz" for m in modes]
+    p2 = plot_mac(auto_mac(fit.shapes), labels, labels, tmp_path / "figs" / "mac.png")
+    for p in (p1, p2):
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(x.name for x in (tmp_path / "figs").iterdir()) == ["mac.png", "stab.png"]
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def test_bad_input_raises_naming_the_problem(exact):
+    x = np.ones(10_000)
+    y = np.ones((10_000, 3))
+    with pytest.raises(ValueError, match="force contains NaN.*first at sample 7"):
+        frf_h1(np.where(np.arange(x.size) == 7, np.nan, x), y, FS, 1024)
+    with pytest.raises(ValueError, match="responses contains NaN"):
+        frf_h1(x, np.where(np.arange(x.size)[:, None] == 3, np.nan, y), FS, 1024)
+    with pytest.raises(ValueError, match="length mismatch: force has 10000 samples, responses 9999"):
+        frf_h1(x, y[1:], FS, 1024)
+    with pytest.raises(ValueError, match="record too short: 1000 samples give 0"):
+        frf_h1(x[:1000], y[:1000], FS, 1024)
+    f, H = exact
+    with pytest.raises(ValueError, match=r"band \(50.0, 60.0\) Hz holds 0 spectral lines"):
+        lscf(f, H, (50.0, 60.0), ORDERS)
+    with pytest.raises(ValueError, match="H must have shape"):
+        lscf(f[1:], H, BAND, ORDERS)
+    with pytest.raises(ValueError, match="orders must be"):
+        lscf(f, H, BAND, [])
+    with pytest.raises(ValueError, match="stable and oscillatory"):
+        mode_shapes(f, H, np.array([0.1 + 60j]), BAND)
+    with pytest.raises(ValueError, match="shapes have 20 and 19 entries"):
+        mac(PHI, PHI[1:])
