@@ -127,3 +127,21 @@ def test_the_rigid_carbody_bounces_on_its_suspension_as_the_two_mass_closed_form
     Kk = np.array([[k_s, -k_s], [-k_s, k_s + k_p]])
     bounce = np.sqrt(scipy.linalg.eigh(Kk, Mm, eigvals_only=True)[0]) / (2 * np.pi)
     assert np.min(np.abs(f - bounce)) / bounce < 0.01
+
+
+def test_a_reduced_basis_reproduces_the_full_model_near_where_it_was_built(vehicle):
+    from calibration.models.box.reduced import ReducedFamily, full_modes
+    coarse = assemble(replace(vehicle, panels=tuple(
+        replace(p, order=(max(p.order[0] // 2, 3), max(p.order[1] // 2, 3))) for p in vehicle.panels)))
+    p0 = np.ones(len(coarse.names))
+    family = ReducedFamily.build(coarse, None, None, None, points=p0[None], modes_per_sample=20, size=50,
+                                 derivatives=12)
+    assert family.size == 50 and np.allclose(family.V.T @ (coarse.M @ family.V), np.eye(50), atol=1e-9)
+    f0, _ = family.modes(p0[None], 20)
+    np.testing.assert_allclose(f0[0], full_modes(coarse, p0, 20)[0], rtol=1e-8)  # its own modes exactly
+    p = p0 * np.exp(np.random.default_rng(2).uniform(-0.05, 0.05, p0.size))
+    full = full_modes(coarse, p, 12)[0]
+    reduced = family.modes(p[None], 12)[0][0]
+    assert np.all(reduced >= full * (1 - 1e-10))  # Rayleigh-Ritz: upper bounds
+    assert np.max(reduced / full - 1) < 5e-4
+    assert np.max(family.residuals(p, 12)) < 0.05
