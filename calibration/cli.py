@@ -74,6 +74,26 @@ def cmd_synth_in_service(args) -> int:
     return EXIT_OK
 
 
+def cmd_synth_excitation(args) -> int:
+    from .truth.effects import parse_effect
+    from .truth.excitation import ExcitationSettings, synth_excitation
+
+    effect = parse_effect(args.effect, "stationary_excitation")
+    if args.runs < 1:
+        raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
+    if not 20.0 * args.runs <= args.duration <= 7200.0:
+        raise InputError(f"--duration must be within {20 * args.runs:g}..7200 s (at least 20 s per run), "
+                         f"got {args.duration:g}", key="--duration")
+    settings = ExcitationSettings(runs=args.runs, duration=args.duration)
+    truth = synth_excitation(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
+                             overwrite=args.force, progress=_progress(args))
+    elastic = [f"{k} {f:.2f} Hz" for k, f in truth["frequencies_hz"].items() if truth["mode_kinds"][k] == "elastic"]
+    print(f"wrote {args.out} ({args.runs} runs x {settings.run_duration:g} s, {len(truth['sensors'])} floor "
+          f"accelerometers and the exciter force at {settings.fs:g} Hz) and {args.out}.truth.json; "
+          f"{truth['modes_kept']['count']} modes kept; elastic modes in 3-25 Hz: {', '.join(elastic)}")
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------- identify
 def cmd_identify(args) -> int:
     from .identification.fdd import FDDSettings
@@ -232,6 +252,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--force", action="store_true", help="replace an existing folder")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_synth_in_service)
+    s = ssub.add_parser("excitation", help="stationary excitation test (exciter force and floor accelerometers)")
+    s.add_argument("out", help="campaign folder to create")
+    s.add_argument("--seed", type=_seed, default=0)
+    s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")
+    s.add_argument("--runs", type=int, default=2)
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE]")
+    s.add_argument("--force", action="store_true", help="replace an existing folder")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_synth_excitation)
 
     s = sub.add_parser("identify", help="modal identification of a campaign")
     s.add_argument("campaign")

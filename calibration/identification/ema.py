@@ -183,22 +183,48 @@ def frf_h1(force: np.ndarray, responses: np.ndarray, fs: float, nperseg: int, no
             raise ValueError(f"{name} contains NaN or inf ({bad.size} samples, first at sample {bad[0]})")
     if not fs > 0:
         raise ValueError(f"fs must be > 0 Hz, got {fs}")
+    step = nperseg - (nperseg // 2 if noverlap is None else int(noverlap))
+    n_avg = 1 + (force.size - nperseg) // step if force.size >= nperseg and step > 0 else 0
+    if n_avg < 2:
+        raise ValueError(f"record too short: {force.size} samples give {n_avg} Welch segment(s) of nperseg "
+                         f"{nperseg}; at least 2 are needed")
+    return frf_h1_records([(force, responses)], fs, nperseg, noverlap, window, min_averages=2)
+
+
+def frf_h1_records(records, fs: float, nperseg: int, noverlap: int | None = None, window="hann", *,
+                   min_averages: int = 2) -> FRFEstimate:
+    """H1 and coherence from several records (runs, or the blocks of a run between gaps):
+    their Welch auto- and cross-spectra are averaged with weights equal to their segment
+    counts, so every segment counts once. Records shorter than ``nperseg`` are skipped.
+    ``records``: iterable of (force (n,), responses (n, n_out)) pairs without NaN."""
     noverlap = nperseg // 2 if noverlap is None else int(noverlap)
     if not 0 <= noverlap < nperseg:
         raise ValueError(f"noverlap must be in [0, nperseg), got {noverlap} for nperseg {nperseg}")
-    n_avg = 1 + (force.size - nperseg) // (nperseg - noverlap) if force.size >= nperseg else 0
-    if n_avg < 2:
-        raise ValueError(f"record too short: {force.size} samples give {n_avg} Welch segment(s) of nperseg "
-                         f"{nperseg} with noverlap {noverlap}; at least 2 are needed")
+    if not fs > 0:
+        raise ValueError(f"fs must be > 0 Hz, got {fs}")
     kw = {"fs": fs, "nperseg": nperseg, "noverlap": noverlap, "window": window, "axis": 0}
-    f, Gff = scipy.signal.welch(force, **kw)
-    _, Gfy = scipy.signal.csd(force[:, None], responses, **kw)  # E[conj(F) Y]
-    _, Gyy = scipy.signal.welch(responses, **kw)
-    Gff = Gff[:, None]
+    total, sums, f = 0, None, None
+    for force, responses in records:
+        force, responses = np.asarray(force, float), np.asarray(responses, float)
+        if responses.ndim == 1:
+            responses = responses[:, None]
+        n_avg = 1 + (force.size - nperseg) // (nperseg - noverlap) if force.size >= nperseg else 0
+        if n_avg < 1:
+            continue
+        f, Gff = scipy.signal.welch(force, **kw)
+        _, Gfy = scipy.signal.csd(force[:, None], responses, **kw)  # E[conj(F) Y]
+        _, Gyy = scipy.signal.welch(responses, **kw)
+        parts = (n_avg * Gff[:, None], n_avg * Gfy, n_avg * Gyy)
+        sums = parts if sums is None else tuple(a + b for a, b in zip(sums, parts))
+        total += n_avg
+    if total < min_averages:
+        raise ValueError(f"records too short: {total} Welch segment(s) of nperseg {nperseg} with noverlap "
+                         f"{noverlap}; at least {min_averages} are needed")
+    Gff, Gfy, Gyy = (x / total for x in sums)
     tiny = np.finfo(float).tiny
     H = Gfy / np.maximum(Gff, tiny)
     coherence = np.clip(np.abs(Gfy) ** 2 / np.maximum(Gff * Gyy, tiny), 0.0, 1.0)
-    return FRFEstimate(f, H, coherence, int(n_avg))
+    return FRFEstimate(f, H, coherence, int(total))
 
 
 # --------------------------------------------------------------------------- helpers

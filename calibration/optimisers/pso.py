@@ -6,6 +6,11 @@ Each particle remembers its best position; the swarm its global best. Velocities
 clamped to ``max_velocity`` times each parameter's range, positions to the ranges. The
 RTRI seed's stopping rule: stop when the best objective reaches ``target`` (its 0.5 %) or
 after ``iterations`` (its 1000). The whole swarm is evaluated in one call per iteration.
+
+An objective that refines itself as the search narrows (the box model's reduced basis is
+rebuilt around the swarm's best) passes ``adapt(iteration, global_best) -> bool``; when
+it returns True the objective has changed, and every particle's remembered best is
+re-evaluated with it so that old and new values are never compared.
 """
 from __future__ import annotations
 
@@ -43,7 +48,7 @@ class PSOResult:
 
 
 def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.random.Generator, *,
-                   settings: PSOSettings = PSOSettings()) -> PSOResult:
+                   settings: PSOSettings = PSOSettings(), adapt=None) -> PSOResult:
     names = tuple(p.name for p in parameters)
     low, high = bounds(parameters)
     if not (np.all(np.isfinite(high)) and np.all(np.isfinite(low))) or any(p.low is None for p in parameters):
@@ -73,6 +78,11 @@ def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.r
         better = fx < p_val
         p_best[better], p_val[better] = x[better], fx[better]
         g = int(np.argmin(p_val))
+        if adapt is not None and adapt(it, p_best[g].copy()):
+            p_val = np.asarray(objective(p_best), float)
+            p_val = np.where(np.isfinite(p_val), p_val, np.inf)
+            evaluations += n
+            g = int(np.argmin(p_val))
         history.append(float(p_val[g]))
     return PSOResult(names, p_best[g].copy(), float(p_val[g]), it, evaluations,
                      bool(p_val[g] <= settings.target), history)

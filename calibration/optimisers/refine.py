@@ -48,8 +48,11 @@ def _judged(family: LinearFamily, p: np.ndarray, targets: dict, judge) -> tuple[
 
 
 def refine(family: LinearFamily, p_start: np.ndarray, targets: dict, low: np.ndarray, high: np.ndarray, *,
-           judge=None, tol: float = 1e-14, max_iter: int = 500) -> RefineResult:
-    """``judge(frequencies: dict, targets: dict) -> float`` decides what "worse" means."""
+           judge=None, tol: float = 1e-14, max_iter: int = 500, step_weight: float = 0.0) -> RefineResult:
+    """``judge(frequencies: dict, targets: dict) -> float`` decides what "worse" means.
+    ``step_weight`` > 0 adds step_weight * sum_j (p_j / p_start_j - 1)^2 to the objective:
+    with more parameters than targets it picks the smallest change that fits (the box
+    model refines in rounds on a basis that is accurate near its centre)."""
     judge = _relative_sse if judge is None else judge
     p_start = np.asarray(p_start, float)
     labels = tuple(targets)
@@ -70,6 +73,8 @@ def refine(family: LinearFamily, p_start: np.ndarray, targets: dict, low: np.nda
         g.append(phis[i].T @ M @ phis[i] - 1)
         w_target = 2 * np.pi * targets[lbl]
         f = f + (ca.sqrt(lam[i]) / w_target - 1) ** 2
+    if step_weight:
+        f = f + step_weight * ca.sumsqr(x - 1)
     z = ca.vertcat(x, lam, *phis)
     solver = ca.nlpsol("refine", "ipopt", {"x": z, "f": f, "g": ca.vertcat(*g)},
                        {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": tol,

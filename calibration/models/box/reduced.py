@@ -25,10 +25,12 @@ from .assembly import BoxModel
 
 def full_modes(model: BoxModel, p, n_modes: int, shift_hz: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
     """Lowest ``n_modes`` of the full model at parameters p: frequencies [Hz] and
-    M-normalised shapes (n_dof, n_modes), by shift-invert Lanczos."""
+    M-normalised shapes (n_dof, n_modes), by shift-invert Lanczos from a fixed start
+    vector (ARPACK's own is random, and the same call must give the same modes)."""
     K, M = model.stiffness(p).tocsc(), model.M.tocsc()
     sigma = -(2 * np.pi * shift_hz) ** 2
-    w2, X = scipy.sparse.linalg.eigsh(K, k=n_modes, M=M, sigma=sigma, which="LM")
+    v0 = np.random.default_rng(0).standard_normal(model.n_dof)
+    w2, X = scipy.sparse.linalg.eigsh(K, k=n_modes, M=M, sigma=sigma, which="LM", v0=v0)
     order = np.argsort(w2)
     w2, X = w2[order], X[:, order]
     return np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi), X

@@ -101,6 +101,12 @@ SEARCH_PARAMETERS = (
 )
 
 
+def floor_panel(x: float, geometry: Geometry = Geometry()) -> str:
+    """The floor panel holding the point at ``x`` [m] (split at +-``floor_split``)."""
+    xs = geometry.floor_split
+    return "floor_front" if x > xs else "floor_rear" if x < -xs else "floor_middle"
+
+
 def shinkansen_vehicle(geometry: Geometry = Geometry(), orders: dict | None = None,
                        order_increase: int = 0, parameters=SEARCH_PARAMETERS) -> BoxVehicle:
     """The assumed Shinkansen-type test vehicle; ``orders`` overrides panel orders,
@@ -166,10 +172,7 @@ def shinkansen_vehicle(geometry: Geometry = Geometry(), orders: dict | None = No
             links.append(Link(f"{name}_yaw_damper_{y:+.2f}", "yaw_damper", floor, (xb, y, zf), name,
                               (xb, y, g.bogie_z), **SUSPENSION["yaw_damper"]))
 
-    def floor_panel(x):
-        return "floor_front" if x > xs else "floor_rear" if x < -xs else "floor_middle"
-
-    masses = tuple(PointMass(f"iron_block_{x:+.0f}_{y:+.1f}", floor_panel(x), (x, y, zf), m, IRON_BLOCK_FOOTPRINT)
+    masses = tuple(PointMass(f"iron_block_{x:+.0f}_{y:+.1f}", floor_panel(x, g), (x, y, zf), m, IRON_BLOCK_FOOTPRINT)
                    for x, y, m in IRON_BLOCKS)
     return BoxVehicle(tuple(panels), tuple(joints), tuple(bodies), tuple(links), masses, tuple(parameters))
 
