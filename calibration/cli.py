@@ -101,9 +101,8 @@ def cmd_identify(args) -> int:
     from .identification.plots import plot_identification, plot_spectra
 
     campaign = open_campaign(args.campaign)
-    if campaign.meta.kind != "in_service":
-        raise InputError(f"identification of {campaign.meta.kind} campaigns is not available yet "
-                         "(in-service campaigns only)", path=campaign.root / "campaign.toml", key="kind")
+    if campaign.meta.kind == "stationary_excitation":
+        return _identify_excitation(campaign, args)
     settings = IdentifySettings(fdd=FDDSettings(seed=args.seed))
     result = identify_in_service(campaign, settings=settings, progress=_progress(args))
     out = result.to_json()
@@ -116,6 +115,25 @@ def cmd_identify(args) -> int:
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
     print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected_peaks)} peaks rejected; "
           f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote {args.out} and {png}")
+    return EXIT_OK
+
+
+def _identify_excitation(campaign, args) -> int:
+    from .identification import ema
+    from .identification.excitation import identify_excitation
+
+    result = identify_excitation(campaign)
+    out = result.to_json()
+    png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
+    ema.plot_stabilisation(result.stabilisation, result.frf.frequency, result.frf.H, png, modes=list(result.modes))
+    mac_png = png.with_name(png.stem + "_mac.png")
+    labels = [f"{m.label} {m.frequency_hz:.2f}" for m in result.modes]
+    ema.plot_mac(result.auto_mac(), labels, labels, mac_png)
+    out["plot"], out["plot_mac"] = str(png), str(mac_png)
+    write_json_atomic(args.out, out)
+    modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz ({100 * m.damping_ratio:.1f} %)" for m in result.modes)
+    print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected)} peaks rejected; "
+          f"{result.frf.n_averages} Welch segments over {result.records} records; wrote {args.out}, {png}, {mac_png}")
     return EXIT_OK
 
 
@@ -165,8 +183,10 @@ def cmd_modes(args) -> int:
 def cmd_calibrate(args) -> int:
     from .calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
 
+    if args.model == "box":
+        return _calibrate_box(args)
     if args.model != "car2d":
-        raise InputError(f"model {args.model!r} cannot be calibrated yet; have: car2d", key="--model")
+        raise InputError(f"unknown model {args.model!r}; have: car2d, box", key="--model")
     if args.runs < 1:
         raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
     if (args.campaign is None) == (args.targets is None):
@@ -197,6 +217,32 @@ def cmd_calibrate(args) -> int:
     return EXIT_OK
 
 
+def _calibrate_box(args) -> int:
+    from .calibrate_box import calibrate_box_campaign
+    from .optimisers.pso import PSOSettings
+
+    if args.method != "pso":
+        raise InputError("the box model is calibrated by particle swarm (the RTRI seed's method): --method pso",
+                         key="--method")
+    if args.campaign is None:
+        raise InputError("calibrating the box model from --targets is not available yet; give a stationary "
+                         "excitation CAMPAIGN", key="--targets")
+    if args.particles < 2 or args.iterations < 1 or not args.stop_pct >= 0:
+        raise InputError("need --particles >= 2, --iterations >= 1 and --stop-pct >= 0", key="--particles")
+    settings = PSOSettings(particles=args.particles, iterations=args.iterations, target=args.stop_pct)
+    result, ident = calibrate_box_campaign(open_campaign(args.campaign), settings=settings, seed=args.seed,
+                                           refine=args.refine, progress=_progress(args))
+    out = result.to_json()
+    out["identified_modes"] = ident.to_json()["modes"]
+    write_json_atomic(args.out, out)
+    pso = result.pso
+    print(f"pso {pso['particles']} x {pso['iterations']} iterations ({pso['evaluations_per_s']:.0f} evaluations/s): "
+          f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
+          f"{result.max_error_pct:.2g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}; "
+          f"{result.identifiability['summary']}; wrote {args.out}")
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------- validate
 def cmd_validate(args) -> int:
     from .models.parameters import CarParameters
@@ -210,11 +256,14 @@ def cmd_validate(args) -> int:
     if not isinstance(params, dict):
         raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", path=path,
                          key="parameters")
+    campaign = open_campaign(args.campaign)
+    if campaign.meta.kind == "stationary_excitation":
+        return _validate_excitation(campaign, json.loads(path.read_text()), args)
     try:
         p = CarParameters.from_mapping(params)
     except ParameterError as e:
         raise InputError(str(e), path=path, key="parameters") from None
-    result = validate(open_campaign(args.campaign), p, progress=_progress(args))
+    result = validate(campaign, p, progress=_progress(args))
     png = plot_validation(result, Path(args.out).with_suffix(".png"))
     out = result.to_json()
     out["plot"] = str(png)
@@ -223,6 +272,23 @@ def cmd_validate(args) -> int:
                         for k, v in out["channels"].items())
     print(f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-{result.band_m[1]:g} m): "
           f"{summary}; wrote {args.out}")
+    return EXIT_OK
+
+
+def _validate_excitation(campaign, calibration: dict, args) -> int:
+    from .frf_compare import compare_frf, plot_frf_comparison
+
+    if calibration.get("model") != "box":
+        raise InputError("a stationary excitation test validates a box calibration (model = box)",
+                         path=Path(args.calibration), key="model")
+    result = compare_frf(campaign, calibration)
+    png = plot_frf_comparison(result, Path(args.out).with_suffix(".png"))
+    out = result.to_json()
+    out["plot"] = str(png)
+    write_json_atomic(args.out, out)
+    print(f"FRF from the exciter to {len(result.sensors)} accelerometers over {result.band[0]:g}-{result.band[1]:g} Hz: "
+          f"FRAC median {out['frac_median']:.3f}, min {out['frac_min']:.3f}; log-magnitude error up to "
+          f"{result.log_error_db.max():.2f} dB rms; wrote {args.out} and {png}")
     return EXIT_OK
 
 
@@ -283,10 +349,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("campaign", nargs="?", default=None)
     s.add_argument("--targets", default=None, help="TOML with [[targets]] label, frequency_hz")
     s.add_argument("--priors", default=None, help="TOML with [NAME] nominal, low, high (default: seed Table 7)")
-    s.add_argument("--model", default="car2d")
+    s.add_argument("--model", choices=("car2d", "box"), default="car2d")
     s.add_argument("--method", choices=("ce", "pso"), default="ce")
     s.add_argument("--objective", choices=("sse", "max_rel"), default="sse")
     s.add_argument("--runs", type=int, default=10)
+    s.add_argument("--particles", type=int, default=1000, help="box model: swarm size (RTRI seed: 1000)")
+    s.add_argument("--iterations", type=int, default=1000, help="box model: iteration cap (RTRI seed: 1000)")
+    s.add_argument("--stop-pct", type=float, default=0.5, help="box model: stop at this evaluation value [%%]")
     s.add_argument("--refine", action="store_true", help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("--out", required=True)

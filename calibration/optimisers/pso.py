@@ -10,7 +10,9 @@ after ``iterations`` (its 1000). The whole swarm is evaluated in one call per it
 An objective that refines itself as the search narrows (the box model's reduced basis is
 rebuilt around the swarm's best) passes ``adapt(iteration, global_best) -> bool``; when
 it returns True the objective has changed, and every particle's remembered best is
-re-evaluated with it so that old and new values are never compared.
+re-evaluated with it so that old and new values are never compared. Reaching ``target``
+is confirmed the same way, with ``adapt(iteration, global_best, force=True)``: the search
+stops only if the best still meets the target once the objective is exact there.
 """
 from __future__ import annotations
 
@@ -78,7 +80,8 @@ def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.r
         better = fx < p_val
         p_best[better], p_val[better] = x[better], fx[better]
         g = int(np.argmin(p_val))
-        if adapt is not None and adapt(it, p_best[g].copy()):
+        if adapt is not None and (adapt(it, p_best[g].copy())
+                                  or (p_val[g] <= settings.target and adapt(it, p_best[g].copy(), force=True))):
             p_val = np.asarray(objective(p_best), float)
             p_val = np.where(np.isfinite(p_val), p_val, np.inf)
             evaluations += n

@@ -189,11 +189,11 @@ def build_model(settings: ExcitationSettings = ExcitationSettings()) -> BoxModel
     return assemble(shinkansen_vehicle(order_increase=settings.order_change))
 
 
-def vertical_operators(model: BoxModel) -> tuple[np.ndarray, np.ndarray]:
-    """Rows giving the vertical displacement [m] of the floor at the sensors of
-    :data:`SENSOR_GRID` (n_sensors, n_dof) and at the exciter (n_dof,); the exciter's row
-    is also the generalised force of a unit upward force there."""
-    return sensor_operator(model, SENSOR_GRID), sensor_operator(model, (EXCITER,))[0]
+def vertical_operators(model: BoxModel, sensors=SENSOR_GRID, exciter=EXCITER) -> tuple[np.ndarray, np.ndarray]:
+    """Rows giving what the sensors read (n_sensors, n_dof) (:data:`SENSOR_GRID` by
+    default) and the exciter's displacement along its direction (n_dof,); the exciter's
+    row is also the generalised force of a unit force there."""
+    return sensor_operator(model, sensors), sensor_operator(model, (exciter,))[0]
 
 
 def _rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
@@ -213,7 +213,8 @@ def _rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
 
 
 def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
-                settings: ExcitationSettings = ExcitationSettings(), model: BoxModel | None = None) -> ModalModel:
+                settings: ExcitationSettings = ExcitationSettings(), model: BoxModel | None = None,
+                sensors=SENSOR_GRID, exciter=EXCITER) -> ModalModel:
     """Modal model of the full box model at ``parameters`` (factors by name; missing ones
     nominal 1): every mode up to ``settings.max_mode_hz`` and the residual pseudo-mode.
 
@@ -221,7 +222,9 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
     ``modes_kept.damping_ratios`` gives back exactly the simulated model). By default the
     suspension estimate for rigid-body-on-suspension modes and the middle of
     ``elastic_damping`` for elastic ones (the simulator draws these per seed).
-    ``model``: the assembled vehicle, built from ``settings`` when not given."""
+    ``model``: the assembled vehicle, built from ``settings`` when not given.
+    ``sensors``, ``exciter``: campaign sensors the shapes are taken at (default: this
+    simulator's grid and exciter)."""
     parameters = dict(parameters or {})
     names = PARAMETER_NAMES if model is None else model.names
     unknown = sorted(set(parameters) - set(names))
@@ -238,7 +241,7 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
     keep = f <= settings.max_mode_hz
     f, X = f[keep], X[:, keep]
     w = 2 * np.pi * f
-    S, e = vertical_operators(model)
+    S, e = vertical_operators(model, sensors, exciter)
     # residual pseudo-mode: static response of the omitted modes to the exciter force
     psi = scipy.sparse.linalg.splu(model.stiffness(p).tocsc()).solve(e) - X @ (X.T @ e / w**2)
     m_psi = psi @ (model.M @ psi)

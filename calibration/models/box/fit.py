@@ -116,11 +116,15 @@ class BoxFit:
         self.centre = p.copy()
         self.rebuilds += 1
 
-    def adapt(self, iteration: int, best, *, every: int = 25, distance: float = 0.02) -> bool:
+    def adapt(self, iteration: int, best, *, force: bool = False, every: int = 25, distance: float = 0.02) -> bool:
         """PSO hook: rebuild around ``best`` when it has moved more than ``distance``
         (largest relative change of a parameter) from the basis centre, checked every
-        ``every`` iterations."""
-        if iteration % every or np.max(np.abs(np.asarray(best) / self.centre - 1)) <= distance:
+        ``every`` iterations; with ``force`` whenever the basis is not centred at ``best``."""
+        moved = np.max(np.abs(np.asarray(best) / self.centre - 1))
+        if force:
+            if moved == 0:
+                return False
+        elif iteration % every or moved <= distance:
             return False
         self.rebuild(best)
         return True

@@ -1,0 +1,126 @@
+"""Parameter determination of the extended box model (RTRI seed, section 4).
+
+The seed's flow (its Figure 6): particles are stiffness factors of the box model; each is
+evaluated by seed eq. 3 with every measured mode paired to the model mode of largest MAC
+(eq. 4); 1000 particles, 1000 iterations, stop at 0.5 %. Then railcal goes further: the
+CasADi refinement (eigen-equations as constraints) takes the swarm's answer to the
+measured frequencies, every figure is re-solved on the full model, and the identifiability
+of the factors from the measured frequencies is reported.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .data.campaign import Campaign
+from .data.errors import InputError
+from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
+from .models.box import SEARCH_PARAMETERS, assemble, shinkansen_vehicle
+from .models.box.fit import BoxFit, ModeTarget, refine_box, sensor_operator
+from .optimisers.base import SearchParameter, bounds
+from .optimisers.identifiability import identifiability
+from .optimisers.pso import PSOSettings, particle_swarm
+
+DEFAULT_RANGE = (0.5, 2.0)  # stiffness factors, when the campaign gives no priors
+PAPER_STOP_PCT = 0.5  # RTRI seed: stop when the evaluation function reaches 0.5 %
+
+
+@dataclass(frozen=True)
+class BoxCalibration:
+    parameters: dict
+    fit: list
+    max_error_pct: float
+    pso: dict
+    refinement: dict | None
+    reduced_vs_full_pct: list
+    identifiability: dict
+    search: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"model": "box", "method": "pso", "parameters": self.parameters, "fit": self.fit,
+                "max_error_pct": self.max_error_pct, "pso": self.pso, "refinement": self.refinement,
+                "reduced_vs_full_pct_at_pso_optimum": self.reduced_vs_full_pct,
+                "identifiability": self.identifiability, "search": self.search}
+
+
+def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
+    """Search parameters from campaign priors ({name: Prior}) or the default factor range."""
+    names = names or tuple(p.name for p in SEARCH_PARAMETERS)
+    priors = dict(priors or {})
+    unknown = sorted(set(priors) - set(names))
+    if unknown:
+        raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(names)}",
+                         key="priors")
+    out = []
+    for n in names:
+        pr = priors.get(n)
+        lo, hi, nom = (pr.low, pr.high, pr.nominal) if pr else (*DEFAULT_RANGE, 1.0)
+        out.append(SearchParameter(n, nom, 0.3 * nom, lo, hi, 0.01 * nom))
+    return tuple(out)
+
+
+def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
+                  settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
+                  sigma_f=0.002, model=None, progress=None) -> BoxCalibration:
+    """``sensors``: the campaign sensors the target shapes are given at (for the operator);
+    ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability."""
+    model = assemble(shinkansen_vehicle()) if model is None else model
+    names = tuple(p.name for p in search)
+    if names != model.names:
+        raise InputError(f"the search must name the model's parameters {model.names}, got {names}", key="priors")
+    fit = BoxFit(model, sensor_operator(model, sensors), targets)
+    low, high = bounds(search)
+    centre = np.array([p.mean for p in search])
+    t0 = time.perf_counter()
+    fit.rebuild(centre)
+    res = particle_swarm(fit, search, np.random.default_rng(seed), settings=settings, adapt=fit.adapt)
+    wall = time.perf_counter() - t0
+    check = fit.full_check(res.best)
+    pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": res.evaluations,
+           "wall_s": wall, "evaluations_per_s": res.evaluations / wall, "basis_rebuilds": fit.rebuilds,
+           "best_reduced_pct": res.best_value, "best_full_pct": check["max_error_pct"],
+           "reached_stop": res.reached_target, "stop_pct": settings.target,
+           "history_pct": [float(v) for v in res.history]}
+    p = res.best
+    refinement = None
+    if refine:
+        if progress:
+            progress("refining on the reduced model in rounds, checked on the full model (CasADi/IPOPT)")
+        r = refine_box(fit, p, low, high)
+        refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
+                      "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
+        p = r.parameters
+    final = fit.full_check(p)
+    fit.rebuild(p)  # exact eigenpairs at p for the sensitivities
+    sigma = np.broadcast_to(np.asarray(sigma_f, float), (len(targets),))
+    ident = identifiability(fit, p, tuple(t.label for t in targets), sigma_f=sigma, low=low, high=high).to_json()
+    rows = [{"label": t.label, "measured_hz": t.frequency_hz, "model_hz": float(final["frequency_hz"][i]),
+             "error_pct": float(final["error_pct"][i]), "mac": float(final["mac"][i]),
+             "model_mode": int(final["index"][i]) + 1} for i, t in enumerate(targets)]
+    return BoxCalibration(dict(zip(names, map(float, p))), rows, float(final["max_error_pct"]), pso, refinement,
+                          [float(x) for x in check["reduced_vs_full_pct"]], ident,
+                          {p.name: [p.low, p.high] for p in search})
+
+
+def targets_from_identification(ident: ShakerIdentification) -> tuple[ModeTarget, ...]:
+    return tuple(ModeTarget(m.label, m.frequency_hz, m.shape) for m in ident.modes)
+
+
+def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
+                           seed: int = 0, refine: bool = True, shaker: ShakerSettings = ShakerSettings(),
+                           progress=None) -> tuple[BoxCalibration, ShakerIdentification]:
+    if campaign.meta.kind != "stationary_excitation":
+        raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
+                         path=campaign.root / "campaign.toml", key="kind")
+    ident = identify_excitation(campaign, shaker)
+    if not ident.modes:
+        raise InputError("no mode identified in the analysis band; nothing to calibrate to",
+                         path=campaign.root / "runs")
+    sensors = tuple(campaign.meta.sensor(n) for n in ident.sensors)
+    search = box_search(campaign.meta.priors)
+    if progress:
+        progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
+    return calibrate_box(targets_from_identification(ident), sensors, search, settings=settings, seed=seed,
+                         refine=refine, progress=progress), ident

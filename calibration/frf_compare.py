@@ -1,0 +1,97 @@
+"""Measured against model FRFs of a stationary excitation test (RTRI seed, Figure 9).
+
+The model accelerance from the exciter force to every floor accelerometer is the modal
+sum of the calibrated box model (all modes up to 100 Hz and the static residual of the
+rest, :func:`calibration.truth.excitation.truth_modes`), with the identified damping ratio
+on each mode paired with a measured one and the median identified ratio on the others.
+Per channel over the analysis band: the frequency response assurance criterion
+
+    FRAC = |sum_f conj(H_meas) H_model|^2 / (sum_f |H_meas|^2 sum_f |H_model|^2)
+
+(1: same shape over frequency) and the log-magnitude error in dB.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .data.campaign import Campaign  # noqa: E402
+from .data.errors import InputError  # noqa: E402
+from .identification.excitation import ShakerIdentification, identify_excitation  # noqa: E402
+from .identification.plots import save_figure  # noqa: E402
+
+
+@dataclass(frozen=True, eq=False)
+class FRFComparison:
+    sensors: tuple[str, ...]
+    frequency: np.ndarray
+    measured: np.ndarray  # (n_f, n_s)
+    model: np.ndarray  # (n_f, n_s)
+    frac: np.ndarray  # (n_s,)
+    log_error_db: np.ndarray  # (n_s,) rms of 20 log10 |H_model / H_meas| over the band
+    band: tuple[float, float]
+
+    def to_json(self) -> dict:
+        return {"kind": "stationary_excitation", "band_hz": list(self.band),
+                "channels": {s: {"frac": float(f), "log_error_db": float(e)}
+                             for s, f, e in zip(self.sensors, self.frac, self.log_error_db)},
+                "frac_min": float(self.frac.min()), "frac_median": float(np.median(self.frac))}
+
+
+def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentification | None = None) -> FRFComparison:
+    from .truth.excitation import truth_modes
+
+    ident = identify_excitation(campaign) if ident is None else ident
+    meta = campaign.meta
+    sensors = tuple(meta.sensor(n) for n in ident.sensors)
+    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    try:
+        params = {k: float(v) for k, v in calibration["parameters"].items()}
+        fit = calibration["fit"]
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise InputError(f"not a box calibration result (parameters, fit): {e}", key="--calibration") from None
+    modal0 = truth_modes(params, sensors=sensors, exciter=exciter)
+    zeta = np.full(modal0.frequency_hz.size, np.nan)
+    identified = {m.label: m.damping_ratio for m in ident.modes}
+    for row in fit:
+        if row.get("model_mode") and identified.get(row["label"]) is not None:
+            zeta[int(row["model_mode"]) - 1] = identified[row["label"]]
+    default = float(np.median([z for z in identified.values() if z is not None]))
+    zeta = np.where(np.isfinite(zeta), zeta, np.where(np.array(modal0.kind) == "elastic", default,
+                                                      modal0.damping_ratio))
+    modal = truth_modes(params, damping=zeta, sensors=sensors, exciter=exciter)
+    lo, hi = ident.settings.band
+    sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
+    f = ident.frf.frequency[sel]
+    Hm, Ha = ident.frf.H[sel], modal.frf(f)
+    frac = np.abs(np.sum(np.conj(Hm) * Ha, axis=0)) ** 2 / (np.sum(np.abs(Hm) ** 2, axis=0)
+                                                             * np.sum(np.abs(Ha) ** 2, axis=0))
+    err = np.sqrt(np.mean((20 * np.log10(np.abs(Ha) / np.maximum(np.abs(Hm), 1e-30))) ** 2, axis=0))
+    return FRFComparison(ident.sensors, f, Hm, Ha, frac, err, (lo, hi))
+
+
+def plot_frf_comparison(cmp: FRFComparison, path, channels: int = 9):
+    """|H| measured and model for up to ``channels`` accelerometers (as seed Figure 9)."""
+    idx = np.linspace(0, len(cmp.sensors) - 1, min(channels, len(cmp.sensors))).round().astype(int)
+    cols = 3
+    rows = int(np.ceil(len(idx) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.6 * rows), sharex=True, squeeze=False)
+    for ax, i in zip(axes.ravel(), idx):
+        ax.semilogy(cmp.frequency, np.abs(cmp.measured[:, i]), "k-", lw=1, label="measured (H1)")
+        ax.semilogy(cmp.frequency, np.abs(cmp.model[:, i]), "r--", lw=1, label="calibrated model")
+        ax.set_title(f"{cmp.sensors[i]}: FRAC {cmp.frac[i]:.3f}", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.ravel()[len(idx):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("frequency [Hz]")
+    axes[0, 0].set_ylabel("|a / F| [(m/s^2)/N]")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle("FRF gain from the exciter force to the floor accelerations")
+    fig.tight_layout()
+    return save_figure(fig, path)
