@@ -37,7 +37,8 @@ LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 SEARCHABLE = MASS_NAMES + STIFFNESS_NAMES
 
 
-def read_targets(path) -> dict[str, float]:
+def read_targets(path, labels=LABELS, model: str = "car2d") -> dict[str, float]:
+    """{label: frequency [Hz]} from [[targets]] tables; ``labels`` are the model's mode labels."""
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text())
@@ -52,8 +53,9 @@ def read_targets(path) -> dict[str, float]:
         if not isinstance(row, dict) or "label" not in row or "frequency_hz" not in row:
             raise InputError("needs label and frequency_hz", path=path, key=key)
         label, f = row["label"], row["frequency_hz"]
-        if label not in LABELS:
-            raise InputError(f"unknown mode label {label!r}; car2d has {', '.join(LABELS)}", path=path, key=f"{key}.label")
+        if label not in labels:
+            raise InputError(f"unknown mode label {label!r}; {model} has {', '.join(labels)}", path=path,
+                             key=f"{key}.label")
         if isinstance(f, bool) or not isinstance(f, (int, float)) or not np.isfinite(f) or f <= 0:
             raise InputError(f"frequency must be a positive number of Hz, got {f!r}", path=path,
                              key=f"{key}.frequency_hz")
@@ -68,9 +70,11 @@ def _convergence_range(nominal: float, low: float, high: float) -> float:
     return 0.005 * abs(nominal) if nominal else 0.005 * (high - low)
 
 
-def read_priors(path) -> tuple[SearchParameter, ...]:
+def read_priors(path, searchable=None) -> tuple[SearchParameter, ...]:
     """Search ranges from a priors file; missing std / convergence_range follow Table 7's habit
-    (a quarter of the range, and 0.5 % of the nominal)."""
+    (a quarter of the range, and 0.5 % of the nominal). ``searchable``: the names a model
+    can search (default: the 2D car's at fixed geometry)."""
+    searchable = SEARCHABLE if searchable is None else tuple(searchable)
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text())
@@ -78,9 +82,8 @@ def read_priors(path) -> tuple[SearchParameter, ...]:
         raise InputError(f"cannot read priors: {e}", path=path) from None
     params = []
     for name, spec in data.items():
-        if name not in SEARCHABLE:
-            raise InputError(f"{name!r} cannot be searched at fixed geometry; searchable: {', '.join(SEARCHABLE)}",
-                             path=path, key=name)
+        if name not in searchable:
+            raise InputError(f"{name!r} cannot be searched; searchable: {', '.join(searchable)}", path=path, key=name)
         if not isinstance(spec, dict) or not {"nominal", "low", "high"} <= set(spec):
             raise InputError("needs nominal, low, high", path=path, key=name)
         for k in ("nominal", "low", "high", "std", "convergence_range"):

@@ -224,16 +224,19 @@ def _calibrate_box(args) -> int:
     if args.method != "pso":
         raise InputError("the box model is calibrated by particle swarm (the RTRI seed's method): --method pso",
                          key="--method")
-    if args.campaign is None:
-        raise InputError("calibrating the box model from --targets is not available yet; give a stationary "
-                         "excitation CAMPAIGN", key="--targets")
+    if (args.campaign is None) == (args.targets is None):
+        raise InputError("give either a stationary excitation CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
     if args.particles < 2 or args.iterations < 1 or not args.stop_pct >= 0:
         raise InputError("need --particles >= 2, --iterations >= 1 and --stop-pct >= 0", key="--particles")
     settings = PSOSettings(particles=args.particles, iterations=args.iterations, target=args.stop_pct)
-    result, ident = calibrate_box_campaign(open_campaign(args.campaign), settings=settings, seed=args.seed,
-                                           refine=args.refine, progress=_progress(args))
-    out = result.to_json()
-    out["identified_modes"] = ident.to_json()["modes"]
+    if args.campaign is not None:
+        result, ident = calibrate_box_campaign(open_campaign(args.campaign), settings=settings, seed=args.seed,
+                                               refine=args.refine, progress=_progress(args))
+        out = result.to_json()
+        out["identified_modes"] = ident.to_json()["modes"]
+    else:
+        result = _calibrate_box_targets(args, settings)
+        out = result.to_json()
     write_json_atomic(args.out, out)
     pso = result.pso
     print(f"pso {pso['particles']} x {pso['iterations']} iterations ({pso['evaluations_per_s']:.0f} evaluations/s): "
@@ -241,6 +244,28 @@ def _calibrate_box(args) -> int:
           f"{result.max_error_pct:.2g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}; "
           f"{result.identifiability['summary']}; wrote {args.out}")
     return EXIT_OK
+
+
+def _calibrate_box_targets(args, settings):
+    """Targets given by mode type and frequency: each paired by MAC with the type's floor
+    pattern at the assumed accelerometer grid of the shaker test."""
+    from .calibrate import read_priors, read_targets
+    from .calibrate_box import box_search, calibrate_box
+    from .models.box.mode_types import MODE_TYPES, typed_targets
+    from .models.box.shinkansen import Geometry
+    from .truth.excitation import SENSOR_GRID
+
+    from .data.campaign import Prior
+    from .models.box import SEARCH_PARAMETERS
+
+    targets = read_targets(args.targets, labels=tuple(MODE_TYPES), model="the box model (mode types)")
+    names = tuple(q.name for q in SEARCH_PARAMETERS)
+    given = read_priors(args.priors, searchable=names) if args.priors else ()
+    search = box_search({q.name: Prior(q.mean, q.low, q.high) for q in given})
+    g = Geometry()
+    typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
+    return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
+                         progress=_progress(args))
 
 
 # --------------------------------------------------------------------------- validate

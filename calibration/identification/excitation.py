@@ -28,7 +28,7 @@ class ShakerSettings:
     band: tuple[float, float] = (6.0, 24.0)  # [Hz] analysis band, inside the force band
     nperseg: int = 4096  # 20.5 s at 200 Hz: 0.049 Hz lines
     orders: tuple[int, ...] = tuple(range(16, 97, 4))
-    min_fraction: float = 0.3  # of the orders a pole must be stable in
+    min_fraction: float = 0.25  # of the orders a pole must be stable in
     cluster_tol: float = 0.002  # relative: stable poles closer than this are one mode
     max_damping: float = 0.10  # poles more damped than this are not structural modes here
     peak_separation_hz: float = 0.3

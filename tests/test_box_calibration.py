@@ -1,0 +1,103 @@
+"""Shaker test to calibrated box model: identification finds the modes the truth put in
+the data, the swarm and the refinement bring the model to them, bad requests are refused.
+
+A coarse box model (every panel order - 4) keeps the file fast."""
+import json
+
+import numpy as np
+import pytest
+
+from calibration.calibrate_box import box_search, calibrate_box, targets_from_identification
+from calibration.cli import main
+from calibration.data.campaign import open_campaign
+from calibration.identification.excitation import identify_excitation
+from calibration.models.box.fit import mac_matrix, select_targets
+from calibration.models.box.mode_types import MODE_TYPES, template
+from calibration.optimisers.pso import PSOSettings
+from calibration.truth.excitation import SENSOR_GRID, ExcitationSettings, build_model, synth_excitation, truth_modes
+
+SETTINGS = ExcitationSettings(runs=1, duration=240.0, order_change=-4)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def shaker(tmp_path_factory, model):
+    root = tmp_path_factory.mktemp("shaker") / "test"
+    truth = synth_excitation(root, seed=2, settings=SETTINGS, model=model)
+    modal = truth_modes(truth["parameters"], damping=truth["modes_kept"]["damping_ratios"], settings=SETTINGS,
+                        model=model)
+    return root, truth, modal, identify_excitation(open_campaign(root))
+
+
+def _strongest_separated(modal):
+    """The four strongest elastic modes in 8-20 Hz whose neighbours lie outside their
+    half-power band (modal overlap < 1): what a single-exciter test must resolve."""
+    f, z = modal.frequency_hz, modal.damping_ratio
+    elastic = np.array([k == "elastic" for k in modal.kind])
+    gap = np.array([np.min(np.abs(np.delete(f[elastic], np.flatnonzero(f[elastic] == fk)) - fk)) for fk in f])
+    separated = elastic & (gap > 2 * z * f)
+    strength = np.where(separated, np.linalg.norm(modal.sensor_shapes, axis=0) * np.abs(modal.exciter_shape)
+                        / (2 * z), 0.0)
+    return select_targets(f, modal.sensor_shapes, strength=strength, n=4)
+
+
+def test_identification_finds_the_strongest_separated_true_modes_with_their_shapes(shaker):
+    _, _, modal, ident = shaker
+    shapes = np.column_stack([m.shape for m in ident.modes])
+    for t in _strongest_separated(modal):
+        mac = mac_matrix(t.shape[:, None], shapes)[0]
+        k = int(np.argmax(mac))
+        assert ident.modes[k].frequency_hz == pytest.approx(t.frequency_hz, rel=0.005)
+        assert mac[k] >= 0.95
+
+
+def test_identification_reports_coherence_damping_and_auto_mac(shaker):
+    _, _, _, ident = shaker
+    out = ident.to_json()
+    assert out["frf"]["median_coherence_in_band"] > 0.9
+    assert all(0 < m["damping_ratio"] < 0.1 for m in out["modes"])
+    A = np.array(out["auto_mac"])
+    assert np.allclose(np.diag(A), 1.0) and A.shape == (len(out["modes"]),) * 2
+
+
+def test_swarm_and_refinement_bring_the_model_to_the_identified_modes(shaker, model):
+    root, truth, _, ident = shaker
+    campaign = open_campaign(root)
+    sensors = tuple(campaign.meta.sensor(n) for n in ident.sensors)
+    result = calibrate_box(targets_from_identification(ident), sensors, box_search(campaign.meta.priors),
+                           settings=PSOSettings(particles=60, iterations=40, target=0.5), seed=1, model=model)
+    assert result.pso["best_full_pct"] <= 0.5 or result.pso["iterations"] == 40
+    assert result.max_error_pct <= 0.05  # after the refinement, judged on the full model
+    assert min(r["mac"] for r in result.fit) >= 0.9
+    assert result.identifiability["rank"] <= len(ident.modes)
+
+
+def test_mode_type_templates_are_distinct_floor_patterns():
+    T = np.column_stack([template(t, SENSOR_GRID, 24.5, 3.38) for t in MODE_TYPES])
+    off = mac_matrix(T, T) - np.eye(T.shape[1])
+    assert np.all(off < 0.5)
+
+
+def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
+    root = shaker[0]
+    assert main(["calibrate", str(root), "--model", "box", "--method", "ce", "--out", str(tmp_path / "c.json")]) == 2
+    assert "--method pso" in capsys.readouterr().err
+    bad = tmp_path / "t.toml"
+    bad.write_text('[[targets]]\nlabel = "wobble"\nfrequency_hz = 10.0\n')
+    assert main(["calibrate", "--targets", str(bad), "--model", "box", "--method", "pso",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "wobble" in capsys.readouterr().err
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_identify_writes_modes_and_plots_for_a_shaker_campaign(shaker, tmp_path):
+    out = tmp_path / "id.json"
+    assert main(["identify", str(shaker[0]), "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.read_text())
+    assert data["kind"] == "stationary_excitation" and data["modes"]
+    assert {"label", "frequency_hz", "damping_ratio", "shape_real", "shape_imag"} <= set(data["modes"][0])
+    assert (tmp_path / "id.png").exists() and (tmp_path / "id_mac.png").exists()
