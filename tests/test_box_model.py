@@ -134,7 +134,7 @@ def test_a_reduced_basis_reproduces_the_full_model_near_where_it_was_built(vehic
     coarse = assemble(replace(vehicle, panels=tuple(
         replace(p, order=(max(p.order[0] // 2, 3), max(p.order[1] // 2, 3))) for p in vehicle.panels)))
     p0 = np.ones(len(coarse.names))
-    family = ReducedFamily.build(coarse, None, None, None, points=p0[None], modes_per_sample=20, size=50,
+    family = ReducedFamily.build(coarse, p0[None], modes_per_sample=20, size=50,
                                  derivatives=12)
     assert family.size == 50 and np.allclose(family.V.T @ (coarse.M @ family.V), np.eye(50), atol=1e-9)
     f0, _ = family.modes(p0[None], 20)

@@ -109,7 +109,7 @@ class BoxFit:
     # -- reduced basis ----------------------------------------------------------------
     def rebuild(self, p) -> None:
         p = np.asarray(p, float)
-        self.reduced = ReducedFamily.build(self.model, None, None, None, points=p[None, :],
+        self.reduced = ReducedFamily.build(self.model, p[None, :],
                                            modes_per_sample=self.n_modes, size=self.basis_size,
                                            derivatives=self.derivatives)
         self._S = self.sensors @ self.reduced.V

@@ -2,11 +2,11 @@
 
 The full model (about 2700 DOF) takes seconds per eigen-solve; a swarm of 1000 particles
 over 1000 iterations needs a million. Because K(p) = K0 + sum_i p_i K_i and the mass is
-fixed, one basis V (n x r, M-orthonormal) serves the whole parameter box: snapshots of the
-full model's lowest modes at the box centre and at Latin-hypercube points of the box are
-compressed by proper orthogonal decomposition (M-weighted). Each particle then solves the
-r x r problem (V^T K(p) V) y = lambda y, all particles in one batched call, the projected
-matrices V^T K_i V being formed once.
+fixed, one basis V (n x r, M-orthonormal) serves a neighbourhood of parameter space: the
+full model's lowest modes at a point, kept exactly, and the directions their parameter
+derivatives point to, compressed by proper orthogonal decomposition (M-weighted). Each
+particle then solves the r x r problem (V^T K(p) V) y = lambda y, all particles in one
+batched call, the projected matrices V^T K_i V being formed once.
 
 The reduced frequencies are upper bounds of the full ones (Rayleigh-Ritz); the error is
 not assumed: :func:`full_modes` re-solves a point on the full model and
@@ -36,15 +36,6 @@ def full_modes(model: BoxModel, p, n_modes: int, shift_hz: float = 0.2) -> tuple
     return np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi), X
 
 
-def latin_hypercube(rng: np.random.Generator, low, high, n: int, log: bool = True) -> np.ndarray:
-    low, high = np.asarray(low, float), np.asarray(high, float)
-    d = low.size
-    u = (np.argsort(rng.random((n, d)), axis=0) + rng.random((n, d))) / n
-    if log:
-        return np.exp(np.log(low) + u * (np.log(high) - np.log(low)))
-    return low + u * (high - low)
-
-
 @dataclass
 class ReducedFamily:
     names: tuple[str, ...]
@@ -54,16 +45,16 @@ class ReducedFamily:
     model: BoxModel
 
     @classmethod
-    def build(cls, model: BoxModel, low, high, rng: np.random.Generator, *, samples: int = 16,
-              modes_per_sample: int = 30, size: int = 60, derivatives: int = 0,
-              points: np.ndarray | None = None) -> "ReducedFamily":
-        """Basis from the lowest ``modes_per_sample`` modes at the log-centre of the box and
-        at ``samples`` Latin-hypercube points (or at ``points``), each with the static
-        responses K(p)^-1 K_i phi_k of its lowest ``derivatives`` modes (the directions a
-        first-order change of parameter i moves mode k in), compressed to ``size`` vectors."""
-        low, high = np.asarray(low, float), np.asarray(high, float)
-        if points is None:
-            points = np.vstack([np.sqrt(low * high)[None, :], latin_hypercube(rng, low, high, samples)])
+    def build(cls, model: BoxModel, points, *, modes_per_sample: int = 30, size: int = 60,
+              derivatives: int = 0) -> "ReducedFamily":
+        """Basis from the lowest ``modes_per_sample`` modes at each parameter row of
+        ``points``, each with the static responses K(p)^-1 K_i phi_k of its lowest
+        ``derivatives`` modes (the directions a first-order change of parameter i moves
+        mode k in), compressed to ``size`` vectors. The first point's modes are kept
+        exactly. (One basis for a whole 0.5-2 box, from modes at Latin-hypercube points,
+        was 0.8-4 % off with 60-120 vectors; a basis around the point of interest, rebuilt
+        as that point moves, is 0.03 % off over +-5 % of it.)"""
+        points = np.atleast_2d(np.asarray(points, float))
         M = model.M
         primary = None  # the modes at the first point stay in the basis exactly
         blocks = []
