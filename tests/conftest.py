@@ -46,3 +46,13 @@ def synthetic_campaign(tmp_path_factory):
     truth = synth_in_service(root, seed=11, settings=InServiceSettings(journeys=6, line=LineSpec(length=24_000.0)),
                              fmt="parquet")
     return root, truth
+
+
+COARSE_BOX_ORDERS = -4  # every panel order - 4: the shaker-test files stay fast, the physics is the same
+
+
+@pytest.fixture(scope="session")
+def coarse_box_model():
+    """The Shinkansen-type box model at coarse panel orders, assembled once per session."""
+    from calibration.truth.excitation import ExcitationSettings, build_model
+    return build_model(ExcitationSettings(order_change=COARSE_BOX_ORDERS))

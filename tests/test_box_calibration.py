@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import COARSE_BOX_ORDERS
 
 from calibration.calibrate_box import box_search, calibrate_box, targets_from_identification
 from calibration.cli import main
@@ -14,14 +15,14 @@ from calibration.identification.excitation import identify_excitation
 from calibration.models.box.fit import mac_matrix, select_targets
 from calibration.models.box.mode_types import MODE_TYPES, template
 from calibration.optimisers.pso import PSOSettings
-from calibration.truth.excitation import SENSOR_GRID, ExcitationSettings, build_model, synth_excitation, truth_modes
+from calibration.truth.excitation import SENSOR_GRID, ExcitationSettings, synth_excitation, truth_modes
 
-SETTINGS = ExcitationSettings(runs=1, duration=240.0, order_change=-4)
+SETTINGS = ExcitationSettings(runs=1, duration=240.0, order_change=COARSE_BOX_ORDERS)
 
 
 @pytest.fixture(scope="module")
-def model():
-    return build_model(SETTINGS)
+def model(coarse_box_model):
+    return coarse_box_model
 
 
 @pytest.fixture(scope="module")

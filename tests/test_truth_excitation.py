@@ -7,21 +7,22 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import COARSE_BOX_ORDERS
 import scipy.signal
 import scipy.sparse.linalg
 
 from calibration.cli import main
 from calibration.data.campaign import open_campaign
-from calibration.truth.excitation import (EXCITER, SENSOR_GRID, ExcitationSettings, anti_alias_sos, build_model,
+from calibration.truth.excitation import (EXCITER, SENSOR_GRID, ExcitationSettings, anti_alias_sos,
                                           draw_truth_parameters, floor_panel, synth_excitation, truth_modes,
                                           vertical_operators)
 
-SETTINGS = ExcitationSettings(runs=1, duration=60.0, order_change=-4)
+SETTINGS = ExcitationSettings(runs=1, duration=60.0, order_change=COARSE_BOX_ORDERS)
 
 
 @pytest.fixture(scope="module")
-def model():
-    return build_model(SETTINGS)
+def model(coarse_box_model):
+    return coarse_box_model
 
 
 @pytest.fixture(scope="module")
