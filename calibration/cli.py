@@ -251,12 +251,11 @@ def _calibrate_box_targets(args, settings):
     pattern at the assumed accelerometer grid of the shaker test."""
     from .calibrate import read_priors, read_targets
     from .calibrate_box import box_search, calibrate_box
+    from .data.campaign import Prior
+    from .models.box import SEARCH_PARAMETERS
     from .models.box.mode_types import MODE_TYPES, typed_targets
     from .models.box.shinkansen import Geometry
     from .truth.excitation import SENSOR_GRID
-
-    from .data.campaign import Prior
-    from .models.box import SEARCH_PARAMETERS
 
     targets = read_targets(args.targets, labels=tuple(MODE_TYPES), model="the box model (mode types)")
     names = tuple(q.name for q in SEARCH_PARAMETERS)
@@ -275,7 +274,8 @@ def cmd_validate(args) -> int:
 
     path = Path(args.calibration)
     try:
-        params = json.loads(path.read_text())["parameters"]
+        calibration = json.loads(path.read_text())
+        params = calibration["parameters"]
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise InputError(f"not a calibration result with 'parameters': {e}", path=path) from None
     if not isinstance(params, dict):
@@ -283,7 +283,7 @@ def cmd_validate(args) -> int:
                          key="parameters")
     campaign = open_campaign(args.campaign)
     if campaign.meta.kind == "stationary_excitation":
-        return _validate_excitation(campaign, json.loads(path.read_text()), args)
+        return _validate_excitation(campaign, calibration, args)
     try:
         p = CarParameters.from_mapping(params)
     except ParameterError as e:
