@@ -57,7 +57,10 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
         raise InputError(f"not a box calibration result (parameters, fit): {e}", key="--calibration") from None
     modal0 = truth_modes(params, sensors=sensors, exciter=exciter)
     zeta = np.full(modal0.frequency_hz.size, np.nan)
-    identified = {m.label: m.damping_ratio for m in ident.modes}
+    # damping of the modes the calibration was fitted to (its own identification), by label
+    rows = calibration.get("identified_modes") or [{"label": m.label, "damping_ratio": m.damping_ratio}
+                                                  for m in ident.modes]
+    identified = {r["label"]: r["damping_ratio"] for r in rows}
     for row in fit:
         if row.get("model_mode") and identified.get(row["label"]) is not None:
             zeta[int(row["model_mode"]) - 1] = identified[row["label"]]
