@@ -333,26 +333,25 @@ def build_parser() -> argparse.ArgumentParser:
 
     synth = sub.add_parser("synth", help="write a synthetic campaign and its truth")
     ssub = synth.add_subparsers(dest="kind", required=True, parser_class=_Parser)
-    s = ssub.add_parser("in-service", help="in-service journeys (bogie and axle-box sensors)")
-    s.add_argument("out", help="campaign folder to create")
-    s.add_argument("--seed", type=_seed, default=0)
+
+    def synth_parser(name, help, func):  # what every synthetic campaign takes
+        s = ssub.add_parser(name, help=help)
+        s.add_argument("out", help="campaign folder to create")
+        s.add_argument("--seed", type=_seed, default=0)
+        s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+        s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE]")
+        s.add_argument("--force", action="store_true", help="replace an existing folder")
+        s.add_argument("--quiet", action="store_true")
+        s.set_defaults(func=func)
+        return s
+
+    s = synth_parser("in-service", "in-service journeys (bogie and axle-box sensors)", cmd_synth_in_service)
     s.add_argument("--journeys", type=int, default=10)
     s.add_argument("--length-km", type=float, default=40.0, help="length of the line [km]")
-    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
-    s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE]")
-    s.add_argument("--force", action="store_true", help="replace an existing folder")
-    s.add_argument("--quiet", action="store_true")
-    s.set_defaults(func=cmd_synth_in_service)
-    s = ssub.add_parser("excitation", help="stationary excitation test (exciter force and floor accelerometers)")
-    s.add_argument("out", help="campaign folder to create")
-    s.add_argument("--seed", type=_seed, default=0)
+    s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
+                     cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")
     s.add_argument("--runs", type=int, default=2)
-    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
-    s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE]")
-    s.add_argument("--force", action="store_true", help="replace an existing folder")
-    s.add_argument("--quiet", action="store_true")
-    s.set_defaults(func=cmd_synth_excitation)
 
     s = sub.add_parser("identify", help="modal identification of a campaign")
     s.add_argument("campaign")
