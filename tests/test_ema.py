@@ -33,17 +33,29 @@ def accelerance(f: np.ndarray) -> np.ndarray:
     return (-w ** 2 * PHI_F / (wn ** 2 - w ** 2 + 2j * ZETA * wn * w)) @ PHI.T
 
 
-def modal_filters():
+def modal_filters(f_n=F_N, zeta=ZETA, phi_f=PHI_F):
     """Per mode, the exact discrete-time filter force -> modal acceleration q_r'' for a
     force linear between samples (first-order hold)."""
     out = []
-    for wn, z, pf in zip(2 * np.pi * F_N, ZETA, PHI_F):
+    for wn, z, pf in zip(2 * np.pi * f_n, zeta, phi_f):
         A = np.array([[0.0, 1.0], [-wn ** 2, -2 * z * wn]])
         C = np.array([[-wn ** 2, -2 * z * wn]])
         sys_d = scipy.signal.cont2discrete((A, np.array([[0.0], [pf]]), C, np.array([[pf]])), 1 / FS, method="foh")
         b, a = scipy.signal.ss2tf(*sys_d[:4])
         out.append((b[0], a))
     return out
+
+
+def simulate_shaker_test(filters, phi, seed, seconds=600.0, noise=0.05):
+    """Band-random force 5-50 Hz [N] and the accelerometers [m/s^2] with ``noise`` x their
+    rms of white noise."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * FS)
+    force = scipy.signal.sosfilt(scipy.signal.butter(4, (5, 50), "bandpass", fs=FS, output="sos"),
+                                 rng.standard_normal(n))
+    y = np.column_stack([scipy.signal.lfilter(b, a, force) for b, a in filters]) @ phi.T
+    y += noise * y.std(axis=0) * rng.standard_normal(y.shape)
+    return force, y
 
 
 def match(found: list[Mode]) -> list[Mode]:
@@ -60,14 +72,8 @@ def exact():
 
 @pytest.fixture(scope="module")
 def shaker_test():
-    rng = np.random.default_rng(3)
-    n = int(600 * FS)
-    force = scipy.signal.sosfilt(scipy.signal.butter(4, (5, 50), "bandpass", fs=FS, output="sos"),
-                                 rng.standard_normal(n))  # [N]
     filters = modal_filters()
-    y = np.column_stack([scipy.signal.lfilter(b, a, force) for b, a in filters]) @ PHI.T
-    y += 0.05 * y.std(axis=0) * rng.standard_normal(y.shape)  # [m/s^2]
-    est = frf_h1(force, y, FS, nperseg=4096)
+    est = frf_h1(*simulate_shaker_test(filters, PHI, seed=3), FS, nperseg=4096)
     H_d = np.column_stack([scipy.signal.freqz(b, a, worN=est.frequency, fs=FS)[1] for b, a in filters]) @ PHI.T
     return est, H_d
 
@@ -134,6 +140,28 @@ def test_lscf_on_noisy_h1_finds_frequencies_within_half_a_percent_and_shapes(sha
         assert mac(fit.shapes[:, r], PHI[:, r])[0, 0] >= 0.95
         assert mac(m.shape, PHI[:, r])[0, 0] >= 0.95  # the numerator shape of the diagram
     assert fit.relative_error.max() < 0.1
+
+
+def test_a_pair_a_seventh_of_its_bandwidth_apart_is_kept_apart_by_shape():
+    """Two modes 0.35 % apart with 1.3-1.4 % damping (modal overlap 7, as a box carbody's
+    torsion and lateral-vertical modes can fall): under noise their poles wander in damping
+    and shape from order to order, so few are stable in all three, and a cut on frequency
+    alone merges them. Clustering on frequency and shape finds both. Measured here: 0.11 %
+    and 0.17 % off, MAC 0.91 and 0.95; with the Hann-windowed H1 the residues at the *true*
+    poles reach MAC 0.98-0.99, so the pair's shapes are limited by its poles. This is the
+    edge of a one-exciter test: of three random shape draws at this spacing, one gives a
+    mixed pair (a second exciter position is the remedy)."""
+    f_n, zeta = np.array([11.0, 13.011, 13.057, 16.0]), np.array([0.02, 0.013, 0.014, 0.02])
+    rng = np.random.default_rng(11)
+    phi, phi_f = rng.standard_normal((27, 4)), rng.uniform(0.6, 1.4, 4)
+    est = frf_h1(*simulate_shaker_test(modal_filters(f_n, zeta, phi_f), phi, seed=5), FS, nperseg=4096)
+    modes = lscf(est.frequency, est.H, (8.0, 19.0), range(16, 97, 4)).select_modes(min_fraction=0.4,
+                                                                                     cluster_tol=0.002)
+    assert len(modes) == 4, [m.frequency_hz for m in modes]
+    for r, fn in enumerate(f_n):
+        m = max(modes, key=lambda m: mac(m.shape, phi[:, r])[0, 0])
+        assert m.frequency_hz == pytest.approx(fn, rel=5e-3)
+        assert mac(m.shape, phi[:, r])[0, 0] >= 0.9
 
 
 def test_peak_picking_finds_the_separated_modes_and_merges_the_close_pair(exact, shaker_test):

@@ -7,7 +7,8 @@ Pipeline (pure functions of arrays; results are frozen objects made once):
 2. :func:`lscf` runs the least-squares complex-frequency-domain estimator (p-LSCF,
    "PolyMAX" with one reference) for a list of model orders and flags, order by order, the
    poles that are stable in frequency, damping and shape: a :class:`Stabilisation`.
-   :meth:`Stabilisation.select_modes` turns clusters of stable poles into physical modes.
+   :meth:`Stabilisation.select_modes` turns clusters of poles consistent in
+   frequency and shape across orders into physical modes.
 3. :func:`mode_shapes` fits residues to all outputs at the selected poles by least-squares
    frequency-domain (LSFD) fitting with lower and upper residual terms.
 4. :func:`peak_picking` is the baseline: peaks of sum_o |H_o|^2, half-power damping,
@@ -27,7 +28,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+import scipy.cluster.hierarchy
 import scipy.signal
+import scipy.spatial.distance
 
 from ..signals.peaks import parabolic_shift
 
@@ -54,7 +57,7 @@ class FRFEstimate:
 class Mode:
     """One identified mode: natural frequency [Hz], damping ratio [-] (None when not
     resolvable), shape (n_out,) with largest-magnitude entry 1 (None when not estimated),
-    and the number of model orders in which the pole was stable (0 for peak picking)."""
+    and the number of model orders whose diagram holds it (0 for peak picking)."""
 
     frequency_hz: float
     damping_ratio: float | None
@@ -100,42 +103,58 @@ class Stabilisation:
     mac_min: float
     max_damping: float
 
-    def select_modes(self, *, min_fraction: float = 0.4, cluster_tol: float = 0.005) -> list[Mode]:
-        """Physical modes: clusters of stable poles across orders, one mode each.
+    def select_modes(self, *, min_fraction: float = 0.4, cluster_tol: float = 0.005,
+                     cluster_mac: float = 0.9) -> list[Mode]:
+        """Physical modes: clusters of consistent poles across orders, one mode each.
 
-        Stable poles of all orders are sorted by frequency and cut where consecutive poles
-        differ by more than ``cluster_tol`` (relative); within a cluster each order keeps
-        its pole nearest the cluster median. A cluster is a mode when it holds stable poles
-        from at least ``min_fraction`` of the orders; its frequency and damping are the
-        medians, its shape that of the pole nearest the median frequency.
+        Candidates are the poles stable in frequency against the previous order (damping
+        and shape are left to the clustering: near a close pair they wander between
+        orders while the frequency holds). Two poles belong to one mode when they differ
+        by at most ``cluster_tol`` in frequency (relative) *and* their shapes have MAC >=
+        ``cluster_mac``; poles of one order never do. Average-linkage clustering on
+        d = max(|df| / (cluster_tol f), (1 - MAC) / (1 - cluster_mac)) cut at 1 (the
+        frequency-and-shape distance of automated modal analysis, Reynders, Houbrechts &
+        De Roeck, Mech. Syst. Signal Process. 29 (2012) 228-250) keeps a close pair apart
+        where a cut on frequency alone would merge it. Within a cluster each order keeps
+        its pole nearest the cluster median. A cluster is a mode when it holds poles from
+        at least ``min_fraction`` of the orders; its frequency and damping are the medians,
+        its shape that of the member most like the others (largest summed MAC).
         """
         if not 0 < min_fraction <= 1:
             raise ValueError(f"min_fraction must be in (0, 1], got {min_fraction}")
+        if not 0 < cluster_tol or not 0 <= cluster_mac < 1:
+            raise ValueError(f"cluster_tol must be > 0 and cluster_mac in [0, 1), got {cluster_tol}, {cluster_mac}")
         rows = [(op.frequency_hz[i], op.damping_ratio[i], k, op.shapes[:, i])
-                for k, op in enumerate(self.orders) for i in np.flatnonzero(op.stable)]
-        rows.sort(key=lambda r: r[0])
-        clusters, current = [], []
-        for r in rows:
-            if current and r[0] - current[-1][0] > cluster_tol * r[0]:
-                clusters.append(current)
-                current = []
-            current.append(r)
-        if current:
-            clusters.append(current)
+                for k, op in enumerate(self.orders) for i in np.flatnonzero(op.stable_frequency)]
+        if not rows:
+            return []
+        f = np.array([r[0] for r in rows])
+        zeta = np.array([r[1] for r in rows])
+        order = np.array([r[2] for r in rows])
+        shapes = np.column_stack([r[3] for r in rows])
+        if f.size == 1:
+            labels = np.zeros(1, int)
+        else:
+            d_f = np.abs(f[:, None] - f[None, :]) / (cluster_tol * 0.5 * (f[:, None] + f[None, :]))
+            d = np.maximum(d_f, (1.0 - mac(shapes, shapes)) / (1.0 - cluster_mac))
+            d[order[:, None] == order[None, :]] = 1e6  # one pole per order and mode
+            np.fill_diagonal(d, 0.0)
+            tree = scipy.cluster.hierarchy.linkage(scipy.spatial.distance.squareform(d, checks=False), "average")
+            labels = scipy.cluster.hierarchy.fcluster(tree, t=1.0, criterion="distance")
         modes = []
-        for c in clusters:
-            f_med = np.median([r[0] for r in c])
+        for c in np.unique(labels):
+            idx = np.flatnonzero(labels == c)
+            f_med = np.median(f[idx])
             best = {}
-            for r in c:  # one pole per order
-                if r[2] not in best or abs(r[0] - f_med) < abs(best[r[2]][0] - f_med):
-                    best[r[2]] = r
+            for i in idx:  # one pole per order
+                if order[i] not in best or abs(f[i] - f_med) < abs(f[best[order[i]]] - f_med):
+                    best[order[i]] = i
             if len(best) < min_fraction * len(self.orders):
                 continue
-            sel = list(best.values())
-            f = np.array([r[0] for r in sel])
-            shape = sel[int(np.argmin(np.abs(f - np.median(f))))][3]
-            modes.append(Mode(float(np.median(f)), float(np.median([r[1] for r in sel])), shape, len(sel)))
-        return modes
+            sel = np.array(sorted(best.values()))
+            rep = sel[int(np.argmax(mac(shapes[:, sel], shapes[:, sel]).sum(axis=1)))]
+            modes.append(Mode(float(np.median(f[sel])), float(np.median(zeta[sel])), shapes[:, rep], int(sel.size)))
+        return sorted(modes, key=lambda m: m.frequency_hz)
 
 
 @dataclass(frozen=True, eq=False)

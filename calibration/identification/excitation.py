@@ -2,10 +2,12 @@
 
 From the force channel and the accelerometers of every run: H1 FRFs with coherence over
 all gap-free blocks (:func:`~calibration.identification.ema.frf_h1_records`), the p-LSCF
-stabilisation diagram in the analysis band, physical modes as clusters of stable poles
-with their complex shapes (the fraction's numerators at the pole: for one force input,
-the residues), and peak picking beside them as the baseline. Poles too heavily damped to
-be structural are reported as rejected, and so are FRF peaks with no stable pole.
+stabilisation diagram in the analysis band, physical modes as clusters of poles alike in
+frequency and shape across orders, with their complex shapes (the fraction's numerators
+at the pole: for one force input, the residues), and peak picking beside them as the
+baseline. Reported as rejected: poles too heavily damped to be structural, pole clusters
+too weak to be a mode (found in fewer than ``min_fraction`` of the orders: e.g. a pair
+closer than the test can resolve), and FRF peaks with no stable pole.
 
 Shapes are not re-fitted by LSFD over the band: with a dozen bogie and local panel modes
 in 6-24 Hz that the floor grid barely sees, an LSFD restricted to the selected poles
@@ -28,8 +30,9 @@ class ShakerSettings:
     band: tuple[float, float] = (6.0, 24.0)  # [Hz] analysis band, inside the force band
     nperseg: int = 4096  # 20.5 s at 200 Hz: 0.049 Hz lines
     orders: tuple[int, ...] = tuple(range(16, 97, 4))
-    min_fraction: float = 0.25  # of the orders a pole must be stable in
-    cluster_tol: float = 0.002  # relative: stable poles closer than this are one mode
+    min_fraction: float = 0.4  # of the orders a mode's pole must be found (frequency-stable) in
+    cluster_tol: float = 0.002  # relative: poles closer than this in frequency ...
+    cluster_mac: float = 0.9  # ... and at least this alike in shape are one mode
     max_damping: float = 0.10  # poles more damped than this are not structural modes here
     peak_separation_hz: float = 0.3
 
@@ -107,17 +110,26 @@ def identify_excitation(campaign: Campaign, settings: ShakerSettings = ShakerSet
     except ValueError as exc:
         raise InputError(f"{exc} (runs, after removing gaps and invalid samples)", path=campaign.root / "runs")
     stab = ema.lscf(frf.frequency, frf.H, settings.band, settings.orders, max_damping=1.0)
-    candidates = stab.select_modes(min_fraction=settings.min_fraction, cluster_tol=settings.cluster_tol)
+    n_orders = len(stab.orders)
+    needed = settings.min_fraction * n_orders
+    clusters = stab.select_modes(min_fraction=0.5 * settings.min_fraction, cluster_tol=settings.cluster_tol,
+                                 cluster_mac=settings.cluster_mac)  # the weak ones too, to report them
+    candidates = [m for m in clusters if m.n_stable >= needed]
+    weak = [{"frequency_hz": m.frequency_hz, "reason": f"poles alike in frequency and shape in only {m.n_stable} "
+             f"of {n_orders} model orders (a mode needs {int(np.ceil(needed))}): not resolved by this test"}
+            for m in clusters if m.n_stable < needed and 0 < m.damping_ratio <= settings.max_damping]
     keep = [m for m in candidates if m.damping_ratio is not None and 0 < m.damping_ratio <= settings.max_damping]
     rejected = [{"frequency_hz": m.frequency_hz, "reason": f"damping ratio {m.damping_ratio:.3f} above "
                  f"{settings.max_damping}: not a structural mode of the carbody"} for m in candidates if m not in keep]
+    rejected += weak
     peaks = ema.peak_picking(frf.frequency, frf.H, settings.band, settings.peak_separation_hz,
                              quantity="acceleration")
     modes = []
     for k, m in enumerate(keep):
         near = [p.frequency_hz for p in peaks if abs(p.frequency_hz / m.frequency_hz - 1) < 0.01]
+        nearest = float(min(near, key=lambda x: abs(x - m.frequency_hz))) if near else None
         modes.append(ShakerMode(f"mode_{k + 1}", float(m.frequency_hz), float(m.damping_ratio), m.shape,
-                                int(m.n_stable), float(min(near, key=lambda x: abs(x - m.frequency_hz))) if near else None))
+                                int(m.n_stable), nearest))
     for p in peaks:
         if not any(abs(p.frequency_hz / m.frequency_hz - 1) < 0.01 for m in keep):
             rejected.append({"frequency_hz": float(p.frequency_hz),
