@@ -38,11 +38,16 @@ class BoxCalibration:
     identifiability: dict
     search: dict = field(default_factory=dict)
 
-    def to_json(self) -> dict:
-        return {"model": "box", "method": "pso", "parameters": self.parameters, "fit": self.fit,
-                "max_error_pct": self.max_error_pct, "pso": self.pso, "refinement": self.refinement,
-                "reduced_vs_full_pct_at_pso_optimum": self.reduced_vs_full_pct,
-                "identifiability": self.identifiability, "search": self.search}
+    def to_json(self, ident: ShakerIdentification | None = None) -> dict:
+        """The calibration file; with the identification it was fitted to, its modes too
+        (the FRF comparison takes their damping)."""
+        out = {"model": "box", "method": "pso", "parameters": self.parameters, "fit": self.fit,
+               "max_error_pct": self.max_error_pct, "pso": self.pso, "refinement": self.refinement,
+               "reduced_vs_full_pct_at_pso_optimum": self.reduced_vs_full_pct,
+               "identifiability": self.identifiability, "search": self.search}
+        if ident is not None:
+            out["identified_modes"] = ident.to_json()["modes"]
+        return out
 
 
 def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:

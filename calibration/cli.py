@@ -119,18 +119,11 @@ def cmd_identify(args) -> int:
 
 
 def _identify_excitation(campaign, args) -> int:
-    from .identification import ema
-    from .identification.excitation import identify_excitation
+    from .identification.excitation import identify_excitation, write_identification
 
     result = identify_excitation(campaign)
-    out = result.to_json()
-    png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
-    ema.plot_stabilisation(result.stabilisation, result.frf.frequency, result.frf.H, png, modes=list(result.modes))
-    mac_png = png.with_name(png.stem + "_mac.png")
-    labels = [f"{m.label} {m.frequency_hz:.2f}" for m in result.modes]
-    ema.plot_mac(result.auto_mac(), labels, labels, mac_png)
-    out["plot"], out["plot_mac"] = str(png), str(mac_png)
-    write_json_atomic(args.out, out)
+    out = write_identification(result, args.out, args.plot)
+    png, mac_png = out["plot"], out["plot_mac"]
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz ({100 * m.damping_ratio:.1f} %)" for m in result.modes)
     print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected)} peaks rejected; "
           f"{result.frf.n_averages} Welch segments over {result.records} records; wrote {args.out}, {png}, {mac_png}")
@@ -232,8 +225,7 @@ def _calibrate_box(args) -> int:
     if args.campaign is not None:
         result, ident = calibrate_box_campaign(open_campaign(args.campaign), settings=settings, seed=args.seed,
                                                refine=args.refine, progress=_progress(args))
-        out = result.to_json()
-        out["identified_modes"] = ident.to_json()["modes"]
+        out = result.to_json(ident)
     else:
         result = _calibrate_box_targets(args, settings)
         out = result.to_json()

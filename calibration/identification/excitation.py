@@ -135,3 +135,21 @@ def identify_excitation(campaign: Campaign, settings: ShakerSettings = ShakerSet
             rejected.append({"frequency_hz": float(p.frequency_hz),
                              "reason": "peak in the FRF sum with no stable pole (not a clear mode)"})
     return ShakerIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings)
+
+
+def write_identification(result: ShakerIdentification, out, plot=None) -> dict:
+    """``out`` (JSON): the identification with its figures, the stabilisation diagram at
+    ``plot`` (default: beside ``out``) and the auto-MAC beside it; returns the JSON."""
+    from pathlib import Path
+
+    from ..data.campaign import write_json_atomic
+
+    data = result.to_json()
+    png = Path(plot) if plot else Path(out).with_suffix(".png")
+    ema.plot_stabilisation(result.stabilisation, result.frf.frequency, result.frf.H, png, modes=list(result.modes))
+    mac_png = png.with_name(png.stem + "_mac.png")
+    labels = [f"{m.label} {m.frequency_hz:.2f}" for m in result.modes]
+    ema.plot_mac(result.auto_mac(), labels, labels, mac_png)
+    data["plot"], data["plot_mac"] = str(png), str(mac_png)
+    write_json_atomic(out, data)
+    return data
