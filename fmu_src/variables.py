@@ -1,0 +1,148 @@
+"""The variable list of each FMU: the one source of modelDescription.xml (FMI 2 and 3) and of
+the C header with value references, start values and output tables (``build.py``).
+
+Names, units and meanings of the car's variables are those of
+``shared/spec/interfaces.md``; parameter names, units and descriptions come from
+:data:`calibration.models.parameters.CAR_PARAMETER_SPECS`, so nothing is typed twice.
+Value references are assigned in list order and unique across types (FMI 3 requires it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from calibration.models.car2d import RAIL_INPUTS
+from calibration.models.parameters import CAR_PARAMETER_SPECS
+
+# units as FMI unit names, with their SI base-unit exponents (kg, m, s, rad)
+UNITS = {
+    "s": {"s": 1},
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "rad/s": {"rad": 1, "s": -1},
+    "N": {"kg": 1, "m": 1, "s": -2},
+    "kg": {"kg": 1},
+    "kg.m2": {"kg": 1, "m": 2},
+    "N/m": {"kg": 1, "s": -2},
+    "N.s/m": {"kg": 1, "s": -1},
+}
+_SPEC_UNIT = {"kg": "kg", "kg m^2": "kg.m2", "N/m": "N/m", "N s/m": "N.s/m", "m": "m"}
+
+# output kinds understood by the models' C code (model_config.h's OutputSpec)
+OUT_ACC, OUT_PITCH_RATE, OUT_CONTACT = 0, 1, 2
+CAR_BODIES = ("carbody", "bogie1", "bogie2")
+
+
+@dataclass(frozen=True)
+class Variable:
+    name: str
+    type: str  # "Real" (FMI 3: Float64), "Boolean", "String"
+    causality: str  # "independent", "parameter", "input", "output"
+    variability: str  # "continuous", "tunable", "fixed"
+    description: str
+    unit: str | None = None
+    start: float | bool | str | None = None
+    output: tuple | None = None  # (kind, body index, dx [m], wheel index) for outputs
+    input_rate_of: str | None = None  # an input that is the time derivative of another input
+    lti_input: bool = False  # part of the model's linear-system input vector u
+
+    def __post_init__(self):
+        if self.unit is not None and self.unit not in UNITS:
+            raise ValueError(f"{self.name}: unit {self.unit!r} is not defined in UNITS")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """What the builder needs of one FMU: its identifier, description, source folder, the
+    variable list, the linear system's sizes and the default experiment."""
+
+    identifier: str
+    description: str
+    folder: str  # fmu_src/<folder>/ holds the model's C
+    variables: tuple[Variable, ...]
+    n_states: int
+    standalone: bool
+    defines: dict  # extra #defines for model_config.h (name -> C literal)
+    resources: dict  # file name in resources/ -> source path
+    default_step: float = 1e-3
+    default_stop: float = 10.0
+
+    @property
+    def inputs(self) -> tuple[Variable, ...]:
+        return tuple(v for v in self.variables if v.lti_input)
+
+    @property
+    def outputs(self) -> tuple[Variable, ...]:
+        return tuple(v for v in self.variables if v.causality == "output")
+
+    def value_reference(self, name: str) -> int:
+        for k, v in enumerate(self.variables):
+            if v.name == name:
+                return k
+        raise KeyError(f"{self.identifier} has no variable {name!r}")
+
+
+def _ordered(variables: list[Variable]) -> tuple[Variable, ...]:
+    """Reals first, then Booleans, then Strings (the C layer's value-reference ranges)."""
+    order = {"Real": 0, "Boolean": 1, "String": 2}
+    out = tuple(sorted(variables, key=lambda v: order[v.type]))  # stable: list order within a type
+    names = [v.name for v in out]
+    if len(set(names)) != len(names):
+        raise ValueError(f"duplicate variable names: {sorted({n for n in names if names.count(n) > 1})}")
+    return out
+
+
+def car2d_variables(parameters: dict[str, float], *, track_file: str | None = None,
+                    sensors: tuple = ()) -> tuple[Variable, ...]:
+    """The car FMU's variables: ``parameters`` (calibrated values, SI) become the tunable
+    parameters' start values; ``sensors`` adds an acceleration output per calibrated sensor
+    position, as (name, body, dx [m] from the body centre); ``track_file`` (a name in
+    resources/) makes stand-alone running the default."""
+    missing = sorted(set(CAR_PARAMETER_SPECS) - set(parameters))
+    if missing:
+        raise ValueError(f"the calibration lacks car parameter(s) {', '.join(missing)}")
+    v: list[Variable] = [Variable("time", "Real", "independent", "continuous", "simulation time", "s")]
+    for name, spec in CAR_PARAMETER_SPECS.items():
+        v.append(Variable(name, "Real", "parameter", "tunable", spec.description, _SPEC_UNIT[spec.unit],
+                          float(parameters[name])))
+    for j, rail in enumerate(RAIL_INPUTS, start=1):
+        v.append(Variable(rail, "Real", "input", "continuous",
+                          f"rail level under wheelset {j} ({'leading' if j == 1 else 'trailing'} wheelset "
+                          f"of bogie {(j + 1) // 2})", "m", 0.0, lti_input=True))
+    for j, rail in enumerate(RAIL_INPUTS, start=1):
+        v.append(Variable(f"d{rail}", "Real", "input", "continuous", f"time derivative of {rail}", "m/s", 0.0,
+                          input_rate_of=rail, lti_input=True))
+    for b, body in enumerate(CAR_BODIES):
+        v.append(Variable(f"{body}_acc_z", "Real", "output", "continuous",
+                          f"vertical acceleration of the {body} centre of mass", "m/s2", output=(OUT_ACC, b, 0.0, -1)))
+        v.append(Variable(f"{body}_pitch_rate", "Real", "output", "continuous", f"pitch rate of the {body}", "rad/s",
+                          output=(OUT_PITCH_RATE, b, 0.0, -1)))
+    for j in range(1, 5):
+        v.append(Variable(f"contact_force_{j}", "Real", "output", "continuous",
+                          f"vertical wheel-rail force at wheelset {j}, static load included", "N",
+                          output=(OUT_CONTACT, -1, 0.0, j - 1)))
+    for name, body, dx in sensors:
+        v.append(Variable(f"sensor_{name}", "Real", "output", "continuous",
+                          f"vertical acceleration at the calibrated sensor {name} ({body}, {dx:+.3f} m)", "m/s2",
+                          output=(OUT_ACC, CAR_BODIES.index(body), float(dx), -1)))
+    v.append(Variable("speed", "Real", "input", "continuous", "vehicle speed in stand-alone running", "m/s", 0.0))
+    v.append(Variable("track_start", "Real", "parameter", "fixed",
+                      "stand-alone: track distance of the carbody centre at the start time", "m", 0.0))
+    v.append(Variable("standalone", "Boolean", "parameter", "fixed",
+                      "run over track_file at the input speed instead of taking the rail inputs",
+                      start=track_file is not None))
+    v.append(Variable("track_file", "String", "parameter", "fixed",
+                      "stand-alone: track profile CSV (distance, level), a path or a name in resources/",
+                      start=track_file or ""))
+    return _ordered(v)
+
+
+def car2d_spec(parameters: dict[str, float], *, track: str | None = None, sensors: tuple = ()) -> ModelSpec:
+    """The car FMU; ``track``: a track profile CSV to ship in resources/ for stand-alone runs."""
+    from calibration.models.car2d import GRAVITY
+
+    resources = {"track.csv": track} if track else {}
+    variables = car2d_variables(parameters, track_file="track.csv" if track else None, sensors=sensors)
+    return ModelSpec("railcal_car2d", "2D railway car (carbody, two bogies, four wheelsets on the rail), "
+                     "calibrated by railcal", "car2d", variables, n_states=12, standalone=True,
+                     defines={"MODEL_GRAVITY": repr(GRAVITY)}, resources=resources)
