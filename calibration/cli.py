@@ -260,11 +260,9 @@ def _calibrate_box_targets(args, settings):
 
 
 # --------------------------------------------------------------------------- validate
-def cmd_validate(args) -> int:
-    from .models.parameters import CarParameters
-    from .validation import plot_validation, validate
-
-    path = Path(args.calibration)
+def _read_calibration(path) -> dict:
+    """A calibration file (railcal calibrate --out) with a parameters table, or exit 2."""
+    path = Path(path)
     try:
         calibration = json.loads(path.read_text())
         params = calibration["parameters"]
@@ -273,6 +271,16 @@ def cmd_validate(args) -> int:
     if not isinstance(params, dict):
         raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", path=path,
                          key="parameters")
+    return calibration
+
+
+def cmd_validate(args) -> int:
+    from .models.parameters import CarParameters
+    from .validation import plot_validation, validate
+
+    path = Path(args.calibration)
+    calibration = _read_calibration(path)
+    params = calibration["parameters"]
     campaign = open_campaign(args.campaign)
     if campaign.meta.kind == "stationary_excitation":
         return _validate_excitation(campaign, calibration, args)
@@ -315,6 +323,25 @@ def cmd_demo(args) -> int:
 
     report = run_demo(Path(args.out), progress=_progress(args))
     print(f"demo finished: report {report}")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------ FMUs
+def cmd_export_fmu(args) -> int:
+    from fmu_src.build import BuildError
+    from fmu_src.export import export_fmu
+
+    calibration = _read_calibration(args.calibration)
+    campaign = open_campaign(args.campaign) if args.campaign else None
+    try:
+        built = export_fmu(calibration, args.fmi_version, Path(args.out), track=args.track, campaign=campaign)
+    except ParameterError as e:
+        raise InputError(str(e), path=Path(args.calibration), key="parameters") from None
+    except BuildError as e:
+        print(f"railcal: cannot build the FMU: {e}", file=sys.stderr)
+        return EXIT_INTERNAL
+    print(f"FMI {built.fmi_version} co-simulation FMU with binaries for {', '.join(built.platforms)}"
+          f"{' and a stand-alone track' if args.track else ''}: wrote {built.path}")
     return EXIT_OK
 
 
@@ -384,6 +411,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_validate)
+
+    s = sub.add_parser("export-fmu", help="build an FMI co-simulation FMU of a calibrated model")
+    s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
+    s.add_argument("--fmi-version", type=int, choices=(2, 3), default=2)
+    s.add_argument("--track", default=None, help="track recording CSV (distance, level) for stand-alone running")
+    s.add_argument("--campaign", default=None, help="campaign whose accelerometers become extra outputs")
+    s.add_argument("--out", required=True, help="the .fmu to write")
+    s.set_defaults(func=cmd_export_fmu)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output")

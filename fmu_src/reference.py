@@ -17,16 +17,16 @@ from calibration.models.simulate import ModalSimulator
 
 from .variables import CAR_BODIES, OUT_ACC, OUT_CONTACT, OUT_PITCH_RATE, ModelSpec
 
-# level [m], slope [-] and curvature [1/m] of the rail at track distances s [m]
-Profile = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+# level [m], slope [-], curvature [1/m] and its derivative [1/m^2] at track distances s [m]
+Profile = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
 
 
 def rail_inputs(p: CarParameters, profile: Profile, speed: float, t: np.ndarray, start: float = 0.0):
-    """Rail level z_j, its rate dz_j and acceleration ddz_j under wheelsets 1-4 (n_t, 4)
+    """Rail level z_j and its first three time derivatives under wheelsets 1-4, each (n_t, 4),
     for the car's centre at ``start + speed t``."""
     s = start + speed * np.asarray(t, float)[:, None] + wheelset_positions(p)[None, :]
-    z, slope, curv = profile(s)
-    return z, speed * slope, speed**2 * curv
+    z, slope, curv, dcurv = profile(s)
+    return z, speed * slope, speed**2 * curv, speed**3 * dcurv
 
 
 def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: float, t: np.ndarray, *,
@@ -36,7 +36,7 @@ def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: fl
     t = np.asarray(t, float)
     dt = (t[1] - t[0]) / substeps
     tf = t[0] + dt * np.arange((len(t) - 1) * substeps + 1)
-    z, dz, ddz = rail_inputs(p, profile, speed, tf, start)
+    z, dz, ddz, _ = rail_inputs(p, profile, speed, tf, start)
     asm = build_car(p)
     xw = wheelset_positions(p)
     outs = []
@@ -85,7 +85,7 @@ def smooth_profile(length: float, seed: int, *, dx: float = 0.25, min_wavelength
     spline = scipy.interpolate.CubicSpline(s, z, bc_type="natural")  # as the FMU interpolates a track file
 
     def profile(x):
-        return spline(x), spline(x, 1), spline(x, 2)
+        return spline(x), spline(x, 1), spline(x, 2), spline(x, 3)
 
     return s, z, profile
 

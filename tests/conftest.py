@@ -56,3 +56,34 @@ def coarse_box_model():
     """The Shinkansen-type box model at coarse panel orders, assembled once per session."""
     from calibration.truth.excitation import ExcitationSettings, build_model
     return build_model(ExcitationSettings(order_change=COARSE_BOX_ORDERS))
+
+
+# ------------------------------------------------------------------ FMUs
+CAR_FMU_SPEED = 40.0  # [m/s]
+CAR_FMU_START = 100.0  # [m] track distance of the carbody centre at t = 0
+
+
+@pytest.fixture(scope="session")
+def car_track(tmp_path_factory):
+    """A synthetic track (900 m, 3-70 m wavelengths) as a track CSV and as the reference's
+    spline (the FMU interpolates the file the same way)."""
+
+    from fmu_src.reference import smooth_profile
+
+    s, z, profile = smooth_profile(900.0, seed=3)
+    path = tmp_path_factory.mktemp("track") / "track.csv"
+    np.savetxt(path, np.column_stack([s, z]), delimiter=",", header="distance,level", comments="", fmt="%.17g")
+    return path, profile
+
+
+@pytest.fixture(scope="session")
+def car_fmus(tmp_path_factory, car_track):
+    """The car FMU (intercity trailer parameters, track in resources/) for FMI 2 and 3:
+    (spec, {2: BuiltFMU, 3: BuiltFMU})."""
+    from calibration.models.vehicles import INTERCITY_TRAILER
+    from fmu_src.build import build_fmu
+    from fmu_src.variables import car2d_spec
+
+    out = tmp_path_factory.mktemp("fmus")
+    spec = car2d_spec(INTERCITY_TRAILER.as_dict(), track=car_track[0])
+    return spec, {v: build_fmu(spec, v, out / f"car{v}.fmu") for v in (2, 3)}

@@ -10,9 +10,19 @@
     if (!registry_live(inst)) return fmi2Error; /* freed, foreign or null: nothing to touch */ \
     (void)fn
 
+/* The message is passed as the format string, its '%' doubled: importers that cannot
+ * expand varargs (ctypes-based ones such as fmpy) still show the text. */
 static void log_fmi2(Instance *inst, int status, const char *category, const char *message) {
     fmi2CallbackLogger logger = (fmi2CallbackLogger)inst->logger;
-    if (logger) logger((fmi2ComponentEnvironment)inst->env, inst->name, (fmi2Status)status, category, "%s", message);
+    if (!logger) return;
+    char escaped[2048];
+    size_t k = 0;
+    for (const char *p = message; *p && k + 2 < sizeof escaped; p++) {
+        if (*p == '%') escaped[k++] = '%';
+        escaped[k++] = *p;
+    }
+    escaped[k] = '\0';
+    logger((fmi2ComponentEnvironment)inst->env, inst->name, (fmi2Status)status, category, escaped);
 }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }

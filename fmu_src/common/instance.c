@@ -173,12 +173,13 @@ static void outputs(Instance *inst, const double *u, const double *s) {
 /* Inputs over the step from the communication point: u + s t + c t^2 / 2.
  * A level input whose rate is another input takes that rate as its slope and the rate's
  * slope as its curvature, so the pair stays consistent. A rate input's slope is the
- * derivative the master gave (FMI 2 input derivatives) or else the change since the last
- * communication point (extrapolation); other inputs take the given derivative or hold. */
+ * derivative the master gave (FMI 2 input derivatives, order 1; order 2 gives c) or else
+ * the change since the last communication point (extrapolation); other inputs take the
+ * given derivatives or hold. */
 static void inputs(Instance *inst, double *u, double *s, double *c) {
     for (int j = 0; j < MODEL_NU; j++) {
         u[j] = inst->s.r[INPUT_VR[j]];
-        c[j] = 0.0;
+        c[j] = inst->s.du2_set[j] ? inst->s.du2[j] : 0.0;
         if (inst->s.du_set[j])
             s[j] = inst->s.du[j];
         else if (INPUT_IS_RATE[j] && inst->s.h_prev > 0.0)
@@ -244,8 +245,31 @@ static int load_track(Instance *inst) {
 
 static int check_inputs(Instance *inst) {
     for (int j = 0; j < MODEL_NU; j++)
-        if (!isfinite(inst->s.r[INPUT_VR[j]]) || !isfinite(inst->s.du[j]))
+        if (!isfinite(inst->s.r[INPUT_VR[j]]) || !isfinite(inst->s.du[j]) || !isfinite(inst->s.du2[j]))
             return inst_error(inst, 1, "input %s is not finite", REAL_NAME[INPUT_VR[j]]);
+    return STATUS_OK;
+}
+
+/* Outputs with direct feedthrough follow inputs set after a step (or parameters changed):
+ * recomputed from the state and the inputs as they stand, before they are read. */
+static int refresh_outputs(Instance *inst) {
+    inst->s.outputs_stale = 0;
+    if (inst->dirty && rebuild(inst, 0) != STATUS_OK) return STATUS_ERROR;
+    for (int j = 0; j < MODEL_NU; j++)
+        if (!isfinite(inst->s.r[INPUT_VR[j]])) return STATUS_OK; /* refused on setting; nothing to show */
+    double u[MODEL_NU], s[MODEL_NU], c[MODEL_NU];
+#if HAS_STANDALONE
+    if (inst->s.b[VR_standalone - VR_BOOL_BASE]) {
+        RailInputs rail;
+        model_rail_inputs(inst->s.r, &rail);
+        if (track_inputs(inst, &rail, inst->s.position, inst->s.r[VR_speed], u, s, c) != STATUS_OK)
+            return STATUS_ERROR;
+        outputs(inst, u, s);
+        return STATUS_OK;
+    }
+#endif
+    inputs(inst, u, s, c);
+    outputs(inst, u, s);
     return STATUS_OK;
 }
 
@@ -269,7 +293,8 @@ int inst_exit_init(Instance *inst) {
 #endif
     {
         if (check_inputs(inst) != STATUS_OK) return STATUS_ERROR;
-        for (int j = 0; j < MODEL_NU; j++) u[j] = inst->s.r[INPUT_VR[j]];
+        double c[MODEL_NU];
+        inputs(inst, u, s, c); /* with the derivatives given in initialization mode, if any */
     }
     /* start in static equilibrium under the initial inputs (rates zero): A x = -B u_static */
     double Ax[MODEL_NX * MODEL_NX], bx[MODEL_NX];
@@ -288,6 +313,7 @@ int inst_exit_init(Instance *inst) {
         memset(inst->s.x, 0, sizeof inst->s.x);
     }
     outputs(inst, u, s);
+    inst->s.outputs_stale = 0;
     inst->s.state = ST_STEP;
     return STATUS_OK;
 }
@@ -327,6 +353,7 @@ int inst_set_real(Instance *inst, const unsigned *vr, size_t n, const double *va
         if (kind == 'p' || kind == 'f') {
             if (inst->s.r[i] != value[k]) inst->dirty = 1;
         }
+        if (kind == 'u' || kind == 'p') inst->s.outputs_stale = 1;
         inst->s.r[i] = value[k];
     }
     return STATUS_OK;
@@ -336,6 +363,7 @@ int inst_get_real(Instance *inst, const unsigned *vr, size_t n, double *value) {
     if (!inst_allowed(inst, "get real", ST_INSTANTIATED | ST_INITIALIZATION | ST_STEP | ST_TERMINATED | ST_ERROR))
         return STATUS_ERROR;
     if (n && (!vr || !value)) return inst_error(inst, 0, "get real: null array");
+    if (inst->s.state == ST_STEP && inst->s.outputs_stale && refresh_outputs(inst) != STATUS_OK) return STATUS_ERROR;
     for (size_t k = 0; k < n; k++) {
         int i = real_index(inst, vr[k], "get real");
         if (i < 0) return STATUS_ERROR;
@@ -406,10 +434,16 @@ int inst_set_input_derivatives(Instance *inst, const unsigned *vr, size_t n, con
         if (order[k] < 1) return inst_error(inst, 0, "setRealInputDerivatives: order %d < 1", order[k]);
         if (!isfinite(value[k]))
             return inst_error(inst, 0, "derivative of %s = %g is not finite", REAL_NAME[vr[k]], value[k]);
-        if (order[k] > 1) continue; /* the step is exact for inputs linear over it */
-        if (INPUT_SLOPE_VR[j] >= 0) continue; /* its slope is another input's value */
-        inst->s.du[j] = value[k];
-        inst->s.du_set[j] = 1;
+        if (order[k] > 2) continue; /* the step is exact for inputs quadratic over it */
+        if (INPUT_SLOPE_VR[j] >= 0) continue; /* a level's derivatives are its rate input's */
+        inst->s.outputs_stale = 1;
+        if (order[k] == 1) {
+            inst->s.du[j] = value[k];
+            inst->s.du_set[j] = 1;
+        } else {
+            inst->s.du2[j] = value[k];
+            inst->s.du2_set[j] = 1;
+        }
     }
     return STATUS_OK;
 }
@@ -479,8 +513,11 @@ int inst_do_step(Instance *inst, double t, double h) {
     inst->s.time = t + h;
     inst->s.r[VR_time] = inst->s.time;
     outputs(inst, u, s);
+    inst->s.outputs_stale = 0;
     memset(inst->s.du, 0, sizeof inst->s.du); /* derivatives are given anew for every step */
     memset(inst->s.du_set, 0, sizeof inst->s.du_set);
+    memset(inst->s.du2, 0, sizeof inst->s.du2);
+    memset(inst->s.du2_set, 0, sizeof inst->s.du2_set);
     return STATUS_OK;
 }
 

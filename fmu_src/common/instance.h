@@ -47,8 +47,11 @@ typedef struct {
     double x[MODEL_NX];
     double du[MODEL_NU]; /* input derivatives given for the next step (FMI 2) */
     int du_set[MODEL_NU];
+    double du2[MODEL_NU];    /* second derivatives given for the next step (FMI 2) */
+    int du2_set[MODEL_NU];
     double u_prev[MODEL_NU]; /* inputs at the previous communication point */
     double h_prev;           /* the previous step size; 0 before the first step */
+    int outputs_stale;       /* inputs set since the outputs were computed (direct feedthrough) */
 } Snapshot;
 
 struct Instance {

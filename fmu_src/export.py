@@ -1,0 +1,55 @@
+"""``railcal export-fmu``: a calibration file (``railcal calibrate --out``) to an FMU.
+
+The calibration names its model: ``car2d`` gives the car FMU of ``shared/spec/interfaces.md``
+(calibrated parameters as tunable parameters), ``box`` the box-type vehicle FMU. A track
+recording (campaign format, checked on reading) is shipped in ``resources/`` for
+stand-alone running; a campaign adds an output per calibrated acceleration sensor.
+"""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from calibration.data.campaign import read_track_file
+from calibration.data.errors import InputError
+from calibration.models.parameters import CarParameters
+
+from .build import BuiltFMU, build_fmu
+from .variables import CAR_BODIES, car2d_spec
+
+
+def car_sensors(campaign, p: CarParameters) -> tuple:
+    """(name, body, dx) of the campaign's vertical accelerometers on the car's bodies, dx
+    from the body centre (carbody at 0, bogie 1 at +L_v, bogie 2 at -L_v)."""
+    centre = {"carbody": 0.0, "bogie1": p.L_v, "bogie2": -p.L_v}
+    return tuple((s.name, s.body, float(s.position[0]) - centre[s.body]) for s in campaign.meta.sensors
+                 if s.quantity == "acceleration" and s.direction == "z" and s.body in CAR_BODIES)
+
+
+def export_fmu(calibration: dict, fmi_version: int, out: Path, *, track: Path | None = None, campaign=None,
+               platforms: tuple[str, ...] | None = None) -> BuiltFMU:
+    model = calibration.get("model") if isinstance(calibration, dict) else None
+    if model not in ("car2d", "box"):
+        raise InputError(f"the calibration names model {model!r}; export-fmu builds car2d and box", key="model")
+    if fmi_version not in (2, 3):
+        raise InputError(f"--fmi-version must be 2 or 3, got {fmi_version!r}", key="--fmi-version")
+    params = calibration.get("parameters")
+    if not isinstance(params, dict):
+        raise InputError("the calibration has no parameters table", key="parameters")
+    if model == "box":
+        from .box import box_spec
+
+        return build_fmu(box_spec(calibration), fmi_version, out, platforms=platforms)
+    p = CarParameters.from_mapping(params)  # names, finiteness and physical ranges checked here
+    sensors = car_sensors(campaign, p) if campaign is not None else ()
+    with tempfile.TemporaryDirectory(prefix="railcal_track_") as tmp:
+        track_csv = None
+        if track is not None:
+            rec = read_track_file(Path(track))  # CampaignError (exit 2) names file, line and column
+            track_csv = Path(tmp) / "track.csv"
+            np.savetxt(track_csv, np.column_stack([rec.distance, rec.level]), delimiter=",",
+                       header="distance,level", comments="", fmt="%.17g")
+        return build_fmu(car2d_spec(p.as_dict(), track=track_csv, sensors=sensors), fmi_version, out,
+                         platforms=platforms)
