@@ -146,3 +146,15 @@ def car2d_spec(parameters: dict[str, float], *, track: str | None = None, sensor
     return ModelSpec("railcal_car2d", "2D railway car (carbody, two bogies, four wheelsets on the rail), "
                      "calibrated by railcal", "car2d", variables, n_states=12, standalone=True,
                      defines={"MODEL_GRAVITY": repr(GRAVITY)}, resources=resources)
+
+
+def trivial_spec(n_outputs: int = 1) -> ModelSpec:
+    """A one-state lag, y' = (u - y) / tau, read by ``n_outputs`` outputs y_1..: the yardstick
+    for an importer's own cost per step (give it as many outputs as the FMU it is compared with)."""
+    v = [Variable("time", "Real", "independent", "continuous", "simulation time", "s"),
+         Variable("tau", "Real", "parameter", "fixed", "time constant", "s", 0.1),
+         Variable("u", "Real", "input", "continuous", "input", "m", 0.0, lti_input=True)]
+    v += [Variable(f"y_{k}", "Real", "output", "continuous", "the lag's state", "m", output=(OUT_ACC, 0, 0.0, -1))
+          for k in range(1, n_outputs + 1)]
+    return ModelSpec("railcal_trivial", "one-state lag (importer overhead yardstick)", "trivial", _ordered(v),
+                     n_states=1, standalone=False, defines={}, resources={})

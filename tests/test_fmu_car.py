@@ -268,3 +268,20 @@ def test_the_win64_dll_exports_every_fmi_function(car_fmus, version, tmp_path):
     assert len(required) >= (44 if version == 2 else 75)
     missing = [f for f in required if f" {f}\n" not in dump]
     assert not missing, missing
+
+
+@pytest.mark.parametrize("h", [1e-3, 1e-2])
+def test_libcosim_runs_the_fmi2_fmu_like_fmpy_and_the_model(car_fmus, car_track, h):
+    """A second, independent importer (the Open Simulation Platform's libcosim 0.0.6, which
+    loads FMI 1 and 2 only): the same numbers as fmpy to 1e-9, so both match the model."""
+    from fmu_src.importers import simulate_libcosim
+
+    spec, built = car_fmus
+    sv = {"speed": SPEED, "track_start": START}
+    a = simulate(built[2], h, T=5.0, start_values=sv)
+    b = simulate_libcosim(built[2].path, step=h, stop=5.0, outputs=SPEC_OUTPUTS, start_values=sv)
+    assert np.allclose(a["time"], b["time"])
+    for n in SPEC_OUTPUTS:
+        assert np.max(np.abs(a[n] - b[n])) <= 1e-9 * np.std(a[n]), n
+    ref = car_reference(spec, CAR, car_track[1], SPEED, b["time"], start=START, substeps=max(1, int(h / 5e-5)))
+    assert max(nrmse(b[n], ref[n]) for n in SPEC_OUTPUTS) < (1e-3 if h < 5e-3 else 1e-2)

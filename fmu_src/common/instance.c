@@ -212,7 +212,7 @@ static int track_inputs(Instance *inst, const RailInputs *rail, double position,
         }
         double d[4];
         const double at = position + rail->offset[j];
-        if (track_eval(&inst->track, at, d) != 0)
+        if (track_eval(&inst->track, at, d, &inst->track_hint[j]) != 0)
             return inst_error(inst, 1, "stand-alone: input %s needs the track at %.3f m, outside the profile "
                               "%.3f-%.3f m", REAL_NAME[INPUT_VR[j]], at, inst->track.x[0],
                               inst->track.x[inst->track.n - 1]);
@@ -475,7 +475,7 @@ int inst_do_step(Instance *inst, double t, double h) {
         if (!isfinite(v)) return inst_error(inst, 1, "input speed is not finite");
         RailInputs rail;
         model_rail_inputs(inst->s.r, &rail);
-        const double dx = track_min_spacing(&inst->track);
+        const double dx = inst->track.min_spacing;
         double nsub = ceil(fabs(v) * h / dx);
         if (nsub < 1) nsub = 1;
         if (nsub > MAX_SUBSTEPS)

@@ -70,6 +70,7 @@ struct Instance {
     unsigned long clock;
     Track track;
     int track_loaded;
+    int track_hint[MODEL_NU]; /* last profile segment of each rail input */
     double work[7 * MODEL_NA * MODEL_NA];
     double aug[MODEL_NA * MODEL_NA];
     double expA[MODEL_NA * MODEL_NA];

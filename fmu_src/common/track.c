@@ -114,6 +114,9 @@ int track_load(Track *t, const char *path, char *msg, size_t msg_len) {
     }
     for (int i = t->n - 2; i >= 1; i--) t->m[i] -= cp[i] * t->m[i + 1];
     free(cp);
+    t->min_spacing = INFINITY;
+    for (int i = 1; i < t->n; i++)
+        if (t->x[i] - t->x[i - 1] < t->min_spacing) t->min_spacing = t->x[i] - t->x[i - 1];
     return 0;
 oom:
     snprintf(msg, msg_len, "track profile %s: out of memory at line %d", path, lineno);
@@ -130,13 +133,22 @@ void track_free(Track *t) {
     memset(t, 0, sizeof(*t));
 }
 
-int track_eval(const Track *t, double s, double d[4]) {
+int track_eval(const Track *t, double s, double d[4], int *hint) {
     if (t->n < 2 || !(s >= t->x[0]) || !(s <= t->x[t->n - 1])) return -1;
-    int lo = 0, hi = t->n - 1;
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (t->x[mid] <= s) lo = mid; else hi = mid;
+    int lo = hint ? *hint : 0, hi;
+    if (lo < 0 || lo > t->n - 2) lo = 0;
+    for (int walk = 0; walk < 4 && lo < t->n - 2 && t->x[lo + 1] <= s; walk++) lo++;
+    for (int walk = 0; walk < 4 && lo > 0 && t->x[lo] > s; walk++) lo--;
+    if (t->x[lo] <= s && s <= t->x[lo + 1]) {
+        hi = lo + 1;
+    } else {
+        lo = 0, hi = t->n - 1;
+        while (hi - lo > 1) {
+            int mid = (lo + hi) / 2;
+            if (t->x[mid] <= s) lo = mid; else hi = mid;
+        }
     }
+    if (hint) *hint = lo;
     const double h = t->x[hi] - t->x[lo], a = (t->x[hi] - s) / h, b = (s - t->x[lo]) / h;
     const double m0 = t->m[lo], m1 = t->m[hi];
     d[0] = a * t->z[lo] + b * t->z[hi] + ((a * a * a - a) * m0 + (b * b * b - b) * m1) * h * h / 6;
@@ -144,11 +156,4 @@ int track_eval(const Track *t, double s, double d[4]) {
     d[2] = a * m0 + b * m1;
     d[3] = (m1 - m0) / h;
     return 0;
-}
-
-double track_min_spacing(const Track *t) {
-    double m = INFINITY;
-    for (int i = 1; i < t->n; i++)
-        if (t->x[i] - t->x[i - 1] < m) m = t->x[i] - t->x[i - 1];
-    return m;
 }
