@@ -212,6 +212,7 @@ static int track_inputs(Instance *inst, const RailInputs *rail, double position,
         }
         double d[4];
         const double at = position + rail->offset[j];
+        if (!inst->track_loaded) return inst_error(inst, 1, "stand-alone: no track profile is loaded");
         if (track_eval(&inst->track, at, d, &inst->track_hint[j]) != 0)
             return inst_error(inst, 1, "stand-alone: input %s needs the track at %.3f m, outside the profile "
                               "%.3f-%.3f m", REAL_NAME[INPUT_VR[j]], at, inst->track.x[0],
@@ -542,6 +543,9 @@ int inst_set_state(Instance *inst, const void *state) {
         return STATUS_ERROR;
     const Snapshot *snap = (const Snapshot *)state;
     if (!snap || snap->magic != SNAPSHOT_MAGIC) return inst_error(inst, 0, "setFMUState: not a state of this FMU");
+    if (snap->state != ST_INSTANTIATED && snap->state != ST_INITIALIZATION && snap->state != ST_STEP &&
+        snap->state != ST_TERMINATED && snap->state != ST_ERROR)
+        return inst_error(inst, 0, "setFMUState: the state holds an invalid mode %d", (int)snap->state);
     const int rebuild_needed = memcmp(snap->r, inst->s.r, sizeof snap->r) != 0;
     inst->s = *snap;
     if (rebuild_needed) inst->dirty = 1;

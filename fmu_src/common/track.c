@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 static int column(const char *header, const char *name) {
     /* index of `name` in a comma-separated header, or -1 */
@@ -43,6 +44,11 @@ static int field(const char *line, int k, double *value) {
 
 int track_load(Track *t, const char *path, char *msg, size_t msg_len) {
     memset(t, 0, sizeof(*t));
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode)) {
+        snprintf(msg, msg_len, "track profile %s: not a regular file", path);
+        return -1;
+    }
     FILE *f = fopen(path, "r");
     if (!f) {
         snprintf(msg, msg_len, "track profile %s: cannot open", path);

@@ -1,0 +1,67 @@
+"""The car FMUs (FMI 2.0 and 3.0) against an independent checker: ``fmutool -check`` of
+fmu-manipulation-toolbox. It validates modelDescription.xml against the standard's XSD schema
+("FMU Generic Conformity Checks"), then checks the rules the schema cannot express ("FMU
+Semantic Checks": unique names and value references, causality / variability / initial
+combinations, start values, <ModelStructure>). Every finding is logged at level ERROR, and
+any makes the tool exit with code 7 (its ``ExitCode.CHECK_FAILED``)."""
+import re
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+pytest.importorskip("fmu_manipulation_toolbox")
+
+CHECK_FAILED = 7
+ANSI = re.compile(r"\x1b\[[0-9;]*m")
+LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\s*\| (.*)$")
+
+
+def fmutool_check(path) -> tuple[int, list[tuple[str, str]]]:
+    """Run ``fmutool -input <path> -check``: its exit code and its log as (level, message)."""
+    proc = subprocess.run([sys.executable, "-m", "fmu_manipulation_toolbox.cli.fmutool", "-input", str(path),
+                           "-check"], check=False, capture_output=True, text=True, timeout=120)
+    records = []
+    for line in ANSI.sub("", proc.stdout + proc.stderr).splitlines():
+        m = LINE.match(line)
+        if m:
+            records.append((m[1], m[2].strip()))
+        elif line.strip():  # a message over several lines, or a traceback: keep it, at its record's level
+            records.append((records[-1][0] if records else "UNPARSED", line.strip()))
+    return proc.returncode, records
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_fmutool_check_finds_the_fmu_compliant_with_no_semantic_error(car_fmus, version):
+    _, built = car_fmus
+    code, log = fmutool_check(built[version].path)
+    problems = [(level, msg) for level, msg in log if level not in ("DEBUG", "INFO")]
+    assert (code, problems) == (0, []), "\n".join(f"{level}: {msg}" for level, msg in log)
+    messages = [msg for _, msg in log]
+    assert "=> FMU Generic Conformity Checks" in messages and "=> FMU Semantic Checks" in messages  # both ran
+    assert f"This FMU seems to be compliant with FMI-{version}.0." in messages
+    assert f"No semantic error against the FMI-{version} standard." in messages
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_fmutool_check_fails_a_model_description_with_a_duplicated_name(car_fmus, version, tmp_path):
+    """The check above can fail: the same FMU with its variable m_b renamed m_v is refused."""
+    _, built = car_fmus
+    broken = tmp_path / f"broken{version}.fmu"
+    with zipfile.ZipFile(built[version].path) as src, zipfile.ZipFile(broken, "w", zipfile.ZIP_DEFLATED) as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                assert data.count(b'name="m_b"') == 1
+                data = data.replace(b'name="m_b"', b'name="m_v"')
+            dst.writestr(item, data)
+    code, log = fmutool_check(broken)
+    assert code == CHECK_FAILED
+    section = "FMI-2 §2.2.7" if version == 2 else "FMI-3 §2.4"
+    errors = [msg for level, msg in log if level == "ERROR"]
+    assert errors[:2] == [
+        f"Name 'm_v' is used by several variables{' or aliases' if version == 3 else ''} ({section}).",
+        f"1 semantic error(s) against the FMI-{version} standard."]
+    assert re.fullmatch(r"-check: \d+ error\(s\) found\.", errors[-1])  # it counts its summary line too
+
