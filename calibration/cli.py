@@ -334,7 +334,8 @@ def cmd_export_fmu(args) -> int:
     calibration = _read_calibration(args.calibration)
     campaign = open_campaign(args.campaign) if args.campaign else None
     try:
-        built = export_fmu(calibration, args.fmi_version, Path(args.out), track=args.track, campaign=campaign)
+        built = export_fmu(calibration, args.fmi_version, Path(args.out), track=args.track, campaign=campaign,
+                           cutoff_hz=args.cutoff_hz)
     except ParameterError as e:
         raise InputError(str(e), path=Path(args.calibration), key="parameters") from None
     except BuildError as e:
@@ -417,6 +418,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fmi-version", type=int, choices=(2, 3), default=2)
     s.add_argument("--track", default=None, help="track recording CSV (distance, level) for stand-alone running")
     s.add_argument("--campaign", default=None, help="campaign whose accelerometers become extra outputs")
+    s.add_argument("--cutoff-hz", type=float, default=None,
+                   help="box model: carbody modes kept below this [Hz] (default 100), the rest statically corrected")
     s.add_argument("--out", required=True, help="the .fmu to write")
     s.set_defaults(func=cmd_export_fmu)
 

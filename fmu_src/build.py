@@ -259,6 +259,8 @@ def build_fmu(spec: ModelSpec, fmi_version: int, out: Path, *, platforms: tuple[
             shutil.copy(HERE / "include" / f, src / f)
         shutil.copy(HERE / spec.folder / "model.c", src / "model.c")
         (src / "model_config.h").write_text(config_header(spec, guid))
+        if spec.data_header:
+            (src / "model_data.h").write_text(spec.data_header)
         if fmi_version == 3:
             (src / "buildDescription.xml").write_text(build_description(spec))
         (tmp / "modelDescription.xml").write_text(model_description(spec, fmi_version, guid))

@@ -28,8 +28,18 @@ def car_sensors(campaign, p: CarParameters) -> tuple:
                  if s.quantity == "acceleration" and s.direction == "z" and s.body in CAR_BODIES)
 
 
+def _track_csv(track: Path, folder: Path) -> Path:
+    """The recording checked (CampaignError, exit 2, names file, line and column) and
+    written plainly (distance, level in SI) for the FMU's reader."""
+    rec = read_track_file(Path(track))
+    out = folder / "track.csv"
+    np.savetxt(out, np.column_stack([rec.distance, rec.level]), delimiter=",", header="distance,level",
+               comments="", fmt="%.17g")
+    return out
+
+
 def export_fmu(calibration: dict, fmi_version: int, out: Path, *, track: Path | None = None, campaign=None,
-               platforms: tuple[str, ...] | None = None) -> BuiltFMU:
+               platforms: tuple[str, ...] | None = None, cutoff_hz: float | None = None) -> BuiltFMU:
     model = calibration.get("model") if isinstance(calibration, dict) else None
     if model not in ("car2d", "box"):
         raise InputError(f"the calibration names model {model!r}; export-fmu builds car2d and box", key="model")
@@ -38,18 +48,16 @@ def export_fmu(calibration: dict, fmi_version: int, out: Path, *, track: Path | 
     params = calibration.get("parameters")
     if not isinstance(params, dict):
         raise InputError("the calibration has no parameters table", key="parameters")
-    if model == "box":
-        from .box import box_spec
-
-        return build_fmu(box_spec(calibration), fmi_version, out, platforms=platforms)
-    p = CarParameters.from_mapping(params)  # names, finiteness and physical ranges checked here
-    sensors = car_sensors(campaign, p) if campaign is not None else ()
     with tempfile.TemporaryDirectory(prefix="railcal_track_") as tmp:
-        track_csv = None
-        if track is not None:
-            rec = read_track_file(Path(track))  # CampaignError (exit 2) names file, line and column
-            track_csv = Path(tmp) / "track.csv"
-            np.savetxt(track_csv, np.column_stack([rec.distance, rec.level]), delimiter=",",
-                       header="distance,level", comments="", fmt="%.17g")
+        track_csv = _track_csv(track, Path(tmp)) if track is not None else None
+        if model == "box":
+            from .box import DEFAULT_CUTOFF_HZ, box_spec
+
+            spec = box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track_csv)
+            return build_fmu(spec, fmi_version, out, platforms=platforms)
+        if cutoff_hz is not None:
+            raise InputError("--cutoff-hz is for the box model", key="--cutoff-hz")
+        p = CarParameters.from_mapping(params)  # names, finiteness and physical ranges checked here
+        sensors = car_sensors(campaign, p) if campaign is not None else ()
         return build_fmu(car2d_spec(p.as_dict(), track=track_csv, sensors=sensors), fmi_version, out,
                          platforms=platforms)

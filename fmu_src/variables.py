@@ -66,6 +66,7 @@ class ModelSpec:
     resources: dict  # file name in resources/ -> source path
     default_step: float = 1e-3
     default_stop: float = 10.0
+    data_header: str = ""  # model_data.h: the model's data tables (C), if it has any
 
     @property
     def inputs(self) -> tuple[Variable, ...]:

@@ -486,13 +486,20 @@ int inst_do_step(Instance *inst, double t, double h) {
         const double hs = h / n;
         const Discretisation *d = discretise(inst, hs);
         if (!d) return inst_error(inst, 1, "doStep: the discretisation for h = %g s failed", hs);
-        for (int k = 0; k < n; k++) {
-            if (track_inputs(inst, &rail, inst->s.position + v * hs * k, v, u, s, c) != STATUS_OK)
+        for (int k = 0; k <= n; k++) {
+            const double tau = hs * k;
+            if (track_inputs(inst, &rail, inst->s.position + v * tau, v, u, s, c) != STATUS_OK)
                 return STATUS_ERROR;
-            advance(inst, d, u, s, c);
+            for (int j = 0; j < MODEL_NU; j++)
+                if (rail.kind[j] == MODEL_RAIL_NONE) { /* other inputs go on along their derivatives */
+                    const double s0 = s[j], c0 = inst->s.du2_set[j] ? inst->s.du2[j] : 0.0;
+                    u[j] += (s0 + 0.5 * c0 * tau) * tau;
+                    s[j] = s0 + c0 * tau;
+                    c[j] = c0;
+                }
+            if (k < n) advance(inst, d, u, s, c);
         }
         inst->s.position += v * h;
-        if (track_inputs(inst, &rail, inst->s.position, v, u, s, c) != STATUS_OK) return STATUS_ERROR;
         /* u, s: inputs at the end of the step and their rates, for the outputs */
     } else
 #endif

@@ -21,7 +21,7 @@ void la_matvec_acc(int n, int m, const double *A, const double *x, double beta, 
         const double *a = A + (size_t)i * m;
         double s = 0.0;
         for (int j = 0; j < m; j++) s += a[j] * x[j];
-        y[i] = beta * y[i] + s;
+        y[i] = beta == 0.0 ? s : beta * y[i] + s; /* y may be uninitialised when beta is 0 */
     }
 }
 

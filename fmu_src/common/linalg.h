@@ -7,7 +7,7 @@
 
 /* C = A (n x k) * B (k x m) */
 void la_matmul(int n, int k, int m, const double *A, const double *B, double *C);
-/* y = A (n x m) * x + beta * y */
+/* y = A (n x m) * x + beta * y (with beta = 0, y is only written) */
 void la_matvec_acc(int n, int m, const double *A, const double *x, double beta, double *y);
 /* LU factorisation with partial pivoting of A (n x n) in place; 0 on success, -1 if singular. */
 int la_lu(int n, double *A, int *piv);
