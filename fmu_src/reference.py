@@ -94,3 +94,22 @@ def nrmse(y: np.ndarray, ref: np.ndarray) -> float:
     """||y - ref|| / ||ref - mean(ref)||."""
     ref = np.asarray(ref, float)
     return float(np.linalg.norm(np.asarray(y) - ref) / np.linalg.norm(ref - ref.mean()))
+
+
+def box_reference(reduced, zeta: float, profile: Profile, speed: float, t: np.ndarray, force: np.ndarray, *,
+                  start: float = 0.0, substeps: int = 20) -> np.ndarray:
+    """Floor accelerations (n_t, n_sensors) of the reduced box vehicle
+    (:class:`calibration.models.box.reduction.ReducedVehicle`) at the uniform times ``t``,
+    over the track at ``speed`` with the exciter force ``force`` (given at ``t``, linear in
+    between), started in static equilibrium; the rails are evaluated ``substeps`` times per
+    interval of t."""
+    t = np.asarray(t, float)
+    dt = (t[1] - t[0]) / substeps
+    tf = t[0] + dt * np.arange((len(t) - 1) * substeps + 1)
+    s = start + speed * tf[:, None] + reduced.wheelset_x[None, :]
+    z, slope, _, _ = profile(s)
+    w = np.hstack([z, speed * slope, np.interp(tf, t, force)[:, None]])
+    ss = reduced.state_space(zeta)
+    levels = np.array([True] * 4 + [False] * 4 + [True])  # rail levels and the force; not the rates
+    x0 = -np.linalg.solve(ss.A, ss.B @ np.where(levels, w[0], 0.0))  # static equilibrium, as the FMU starts
+    return ModalSimulator(ss, dt, x0=x0).step_chunk(w)[::substeps]
