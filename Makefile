@@ -6,7 +6,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test venv clean bench
+.PHONY: demo test venv clean bench fmus
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,10 +24,17 @@ test: $(STAMP)
 	$(PY) -m pytest -q tests; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "pytest collected no tests" >&2; exit 1; fi; exit $$rc
 
+# FMUs of the car and the box-type vehicle, FMI 2.0 and 3.0 (win64 too when mingw-w64 is installed:
+# Debian packages gcc-mingw-w64-x86-64 binutils-mingw-w64-x86-64)
+fmus: $(STAMP)
+	$(PY) scripts/build_fmus.py --out build/fmus
+
 # Benchmarks print their figures; bench_fdd synthesises its 30 x 90 km campaign once (about 1.5 GB).
 bench: $(STAMP)
 	$(PY) scripts/bench_fdd.py
 	$(PY) scripts/bench_calibrate_car.py
+	$(PY) scripts/bench_pso_box.py
+	$(PY) scripts/bench_fmu.py
 
 clean:
 	rm -rf $(VENV) demo_output build *.egg-info

@@ -125,3 +125,13 @@ def test_fmpy_and_libcosim_give_the_same_box_run(box_fmus):
     c = fmpy.simulate_fmu(str(built[3].path), stop_time=T, output_interval=h, step_size=h, start_values=sv,
                           input=signal, output=names)
     assert all(np.array_equal(a[n], c[n]) for n in names)  # FMI 2 and 3 step alike
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_fmutool_finds_the_box_fmu_compliant(box_fmus, version):
+    pytest.importorskip("fmu_manipulation_toolbox")
+    from test_fmu_tools import fmutool_check
+
+    code, log = fmutool_check(box_fmus[1][version].path)
+    problems = [(level, msg) for level, msg in log if level not in ("DEBUG", "INFO")]
+    assert (code, problems) == (0, []), "\n".join(f"{level}: {msg}" for level, msg in log)

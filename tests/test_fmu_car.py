@@ -285,3 +285,26 @@ def test_libcosim_runs_the_fmi2_fmu_like_fmpy_and_the_model(car_fmus, car_track,
         assert np.max(np.abs(a[n] - b[n])) <= 1e-9 * np.std(a[n]), n
     ref = car_reference(spec, CAR, car_track[1], SPEED, b["time"], start=START, substeps=max(1, int(h / 5e-5)))
     assert max(nrmse(b[n], ref[n]) for n in SPEC_OUTPUTS) < (1e-3 if h < 5e-3 else 1e-2)
+
+
+def test_export_fmu_builds_from_a_calibration_file_and_refuses_bad_ones(tmp_path, car_track, capsys):
+    import json
+
+    from calibration.cli import main
+
+    good = tmp_path / "cal.json"
+    good.write_text(json.dumps({"model": "car2d", "parameters": CAR.as_dict()}))
+    out = tmp_path / "car.fmu"
+    assert main(["export-fmu", "--calibration", str(good), "--fmi-version", "3", "--track", str(car_track[0]),
+                 "--out", str(out)]) == 0
+    assert validate_fmu(str(out)) == []
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"model": "car2d", "parameters": dict(CAR.as_dict(), k_s=-1.0)}))
+    assert main(["export-fmu", "--calibration", str(bad), "--out", str(tmp_path / "x.fmu")]) == 2
+    assert "k_s" in capsys.readouterr().err
+    track = tmp_path / "track.csv"
+    track.write_text("distance,level\n0,0\n1,nan\n")
+    assert main(["export-fmu", "--calibration", str(good), "--track", str(track), "--out",
+                 str(tmp_path / "y.fmu")]) == 2
+    assert "level" in capsys.readouterr().err
+    assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "y.fmu").exists()
