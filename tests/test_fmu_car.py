@@ -114,7 +114,7 @@ def test_master_driven_rail_inputs_at_1ms(car_fmus, car_track, derivatives, tol_
     """The master sets the inputs of t + h after the step and reads the outputs, which feel
     them directly (feedthrough). With first and second input derivatives the step is exact
     for inputs quadratic over it (measured 4e-6). With first derivatives only, or none (the
-    FMU then extrapolates the rates from the last two points), the bodies still meet 1e-3;
+    FMU then extrapolates the inputs from the last two points), the bodies still meet 1e-3;
     the contact forces carry m_w times the rail acceleration, which a difference over one
     step gives half a step off (measured 0.017 and 0.020)."""
     spec, built = car_fmus

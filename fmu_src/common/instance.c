@@ -172,17 +172,17 @@ static void outputs(Instance *inst, const double *u, const double *s) {
 
 /* Inputs over the step from the communication point: u + s t + c t^2 / 2.
  * A level input whose rate is another input takes that rate as its slope and the rate's
- * slope as its curvature, so the pair stays consistent. A rate input's slope is the
+ * slope as its curvature, so the pair stays consistent. Any other input's slope is the
  * derivative the master gave (FMI 2 input derivatives, order 1; order 2 gives c) or else
- * the change since the last communication point (extrapolation); other inputs take the
- * given derivatives or hold. */
+ * the change since the last communication point (linear extrapolation; hold on the first
+ * step). */
 static void inputs(Instance *inst, double *u, double *s, double *c) {
     for (int j = 0; j < MODEL_NU; j++) {
         u[j] = inst->s.r[INPUT_VR[j]];
         c[j] = inst->s.du2_set[j] ? inst->s.du2[j] : 0.0;
         if (inst->s.du_set[j])
             s[j] = inst->s.du[j];
-        else if (INPUT_IS_RATE[j] && inst->s.h_prev > 0.0)
+        else if (inst->s.h_prev > 0.0)
             s[j] = (u[j] - inst->s.u_prev[j]) / inst->s.h_prev;
         else
             s[j] = 0.0;
