@@ -128,7 +128,7 @@ static const Discretisation *discretise(Instance *inst, double h) {
     Discretisation *slot = &inst->cache[0];
     for (int k = 0; k < CACHE_SIZE; k++) {
         Discretisation *c = &inst->cache[k];
-        if (c->h == h) {
+        if (c->h > 0.0 && fabs(c->h - h) <= 1e-12 * h) { /* masters' step sizes jitter in the last bits */
             c->used = ++inst->clock;
             return c;
         }
@@ -486,18 +486,32 @@ int inst_do_step(Instance *inst, double t, double h) {
         const double hs = h / n;
         const Discretisation *d = discretise(inst, hs);
         if (!d) return inst_error(inst, 1, "doStep: the discretisation for h = %g s failed", hs);
-        for (int k = 0; k <= n; k++) {
+        /* Rail inputs over each substep: value and rate at its start, curvature fitted to the
+         * value at its end (exact for the spline's quadratic rates, never evaluating the
+         * third derivative, which jumps at the profile points) */
+        double ub[MODEL_NU], sb[MODEL_NU], cb[MODEL_NU];
+        if (track_inputs(inst, &rail, inst->s.position, v, u, s, c) != STATUS_OK) return STATUS_ERROR;
+        double u0[MODEL_NU], s0[MODEL_NU], c0[MODEL_NU];
+        memcpy(u0, u, sizeof u0), memcpy(s0, s, sizeof s0);
+        for (int j = 0; j < MODEL_NU; j++) c0[j] = inst->s.du2_set[j] ? inst->s.du2[j] : 0.0;
+        for (int k = 1; k <= n; k++) {
             const double tau = hs * k;
-            if (track_inputs(inst, &rail, inst->s.position + v * tau, v, u, s, c) != STATUS_OK)
+            if (track_inputs(inst, &rail, inst->s.position + v * tau, v, ub, sb, cb) != STATUS_OK)
                 return STATUS_ERROR;
-            for (int j = 0; j < MODEL_NU; j++)
+            for (int j = 0; j < MODEL_NU; j++) {
                 if (rail.kind[j] == MODEL_RAIL_NONE) { /* other inputs go on along their derivatives */
-                    const double s0 = s[j], c0 = inst->s.du2_set[j] ? inst->s.du2[j] : 0.0;
-                    u[j] += (s0 + 0.5 * c0 * tau) * tau;
-                    s[j] = s0 + c0 * tau;
-                    c[j] = c0;
+                    const double t0 = tau - hs;
+                    u[j] = u0[j] + (s0[j] + 0.5 * c0[j] * t0) * t0;
+                    s[j] = s0[j] + c0[j] * t0;
+                    c[j] = c0[j];
+                    ub[j] = u0[j] + (s0[j] + 0.5 * c0[j] * tau) * tau;
+                    sb[j] = s0[j] + c0[j] * tau;
+                } else {
+                    c[j] = 2.0 * (ub[j] - u[j] - s[j] * hs) / (hs * hs);
                 }
-            if (k < n) advance(inst, d, u, s, c);
+            }
+            advance(inst, d, u, s, c);
+            memcpy(u, ub, sizeof u), memcpy(s, sb, sizeof s);
         }
         inst->s.position += v * h;
         /* u, s: inputs at the end of the step and their rates, for the outputs */

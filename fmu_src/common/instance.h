@@ -71,7 +71,7 @@ struct Instance {
     Track track;
     int track_loaded;
     int track_hint[MODEL_NU]; /* last profile segment of each rail input */
-    double work[7 * MODEL_NA * MODEL_NA];
+    double work[7 * MODEL_NA * MODEL_NA + MODEL_NA];
     double aug[MODEL_NA * MODEL_NA];
     double expA[MODEL_NA * MODEL_NA];
     int piv[MODEL_NA];

@@ -76,6 +76,36 @@ void la_lu_solve(int n, int m, const double *LU, const int *piv, double *B) {
     }
 }
 
+/* Diagonal similarity D^-1 A D by powers of 2 that evens row and column norms (Parlett &
+ * Reinsch, Numer. Math. 13 (1969) 293-304; LAPACK's gebal without permutation), in place;
+ * d receives D. A mechanical state matrix (positions and velocities, stiffness up to
+ * omega^2 ~ 1e7) is badly scaled; balanced, its exponential loses far less to squaring. */
+static void balance(int n, double *A, double *d) {
+    for (int i = 0; i < n; i++) d[i] = 1.0;
+    for (int sweep = 0, changed = 1; changed && sweep < 100; sweep++) {
+        changed = 0;
+        for (int i = 0; i < n; i++) {
+            double c = 0.0, r = 0.0;
+            for (int j = 0; j < n; j++)
+                if (j != i) {
+                    c += fabs(A[(size_t)j * n + i]);
+                    r += fabs(A[(size_t)i * n + j]);
+                }
+            if (c == 0.0 || r == 0.0) continue;
+            const double s = c + r;
+            double f = 1.0, g = r / 2.0;
+            while (c < g) f *= 2.0, c *= 4.0;
+            g = r * 2.0;
+            while (c >= g) f /= 2.0, c /= 4.0;
+            if ((c + r) / f < 0.95 * s) {
+                changed = 1;
+                d[i] *= f;
+                for (int j = 0; j < n; j++) A[(size_t)i * n + j] /= f, A[(size_t)j * n + i] *= f;
+            }
+        }
+    }
+}
+
 int la_expm(int n, const double *A, double *E, double *work, int *piv) {
     static const double b[14] = {64764752532480000.0, 32382376266240000.0, 7771770303897600.0,
                                  1187353796428800.0, 129060195264000.0, 10559470521600.0,
@@ -84,18 +114,23 @@ int la_expm(int n, const double *A, double *E, double *work, int *piv) {
     const double theta13 = 5.371920351148152;
     const size_t nn = (size_t)n * n;
     double *X = work, *A2 = work + nn, *A4 = work + 2 * nn, *A6 = work + 3 * nn;
-    double *U = work + 4 * nn, *V = work + 5 * nn, *T = work + 6 * nn;
+    double *U = work + 4 * nn, *V = work + 5 * nn, *T = work + 6 * nn, *d = work + 7 * nn;
+    for (size_t i = 0; i < nn; i++) {
+        if (!isfinite(A[i])) return -1;
+        X[i] = A[i];
+    }
+    balance(n, X, d);
     double norm = 0.0;
     for (int j = 0; j < n; j++) {
         double s = 0.0;
-        for (int i = 0; i < n; i++) s += fabs(A[(size_t)i * n + j]);
+        for (int i = 0; i < n; i++) s += fabs(X[(size_t)i * n + j]);
         if (s > norm) norm = s;
     }
     if (!isfinite(norm)) return -1;
     int sq = 0;
     if (norm > theta13) sq = (int)ceil(log2(norm / theta13));
     const double scale = ldexp(1.0, -sq);
-    for (size_t i = 0; i < nn; i++) X[i] = A[i] * scale;
+    for (size_t i = 0; i < nn; i++) X[i] *= scale;
     la_matmul(n, n, n, X, X, A2);
     la_matmul(n, n, n, A2, A2, A4);
     la_matmul(n, n, n, A4, A2, A6);
@@ -122,5 +157,7 @@ int la_expm(int n, const double *A, double *E, double *work, int *piv) {
         la_matmul(n, n, n, E, E, T);
         memcpy(E, T, nn * sizeof(double));
     }
+    for (int i = 0; i < n; i++) /* undo the balancing: exp(A) = D exp(D^-1 A D) D^-1 */
+        for (int j = 0; j < n; j++) E[(size_t)i * n + j] *= d[i] / d[j];
     return 0;
 }

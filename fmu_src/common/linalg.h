@@ -13,8 +13,9 @@ void la_matvec_acc(int n, int m, const double *A, const double *x, double beta, 
 int la_lu(int n, double *A, int *piv);
 /* Solve A X = B for m right-hand sides (B n x m, overwritten by X) with the factors of la_lu. */
 void la_lu_solve(int n, int m, const double *LU, const int *piv, double *B);
-/* exp(A) of A (n x n) into E by scaling and squaring with the [13/13] Pade approximant
- * (Higham, SIAM J. Matrix Anal. Appl. 26 (2005) 1179-1193). work: 7 n^2 doubles, piv: n.
+/* exp(A) of A (n x n) into E by balancing, then scaling and squaring with the [13/13] Pade
+ * approximant (Higham, SIAM J. Matrix Anal. Appl. 26 (2005) 1179-1193). work: 7 n^2 + n
+ * doubles, piv: n.
  * Returns 0, or -1 when A is not finite or the Pade denominator is singular. */
 int la_expm(int n, const double *A, double *E, double *work, int *piv);
 
