@@ -308,3 +308,25 @@ def test_export_fmu_builds_from_a_calibration_file_and_refuses_bad_ones(tmp_path
                  str(tmp_path / "y.fmu")]) == 2
     assert "level" in capsys.readouterr().err
     assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "y.fmu").exists()
+
+
+def test_export_with_a_campaign_adds_its_accelerometers_as_outputs_at_their_positions(tmp_path, tiny_campaign,
+                                                                                      car_track):
+    """The campaign's bogie accelerometer sits 0.5 m ahead of the bogie centre: the FMU
+    gives its acceleration (centre acceleration minus 0.5 m x pitch acceleration)."""
+    from calibration.data.campaign import open_campaign
+    from fmu_src.export import car_sensors, export_fmu
+    from fmu_src.variables import car2d_spec
+
+    campaign = open_campaign(tiny_campaign)
+    built = export_fmu({"model": "car2d", "parameters": CAR.as_dict()}, 2, tmp_path / "car.fmu",
+                       track=car_track[0], campaign=campaign, platforms=("linux64",))
+    sensors = car_sensors(campaign, CAR)
+    assert sensors == (("bogie1_acc_z", "bogie1", pytest.approx(8.5 - CAR.L_v)),)
+    res = fmpy.simulate_fmu(str(built.path), stop_time=2.0, output_interval=1e-3, step_size=1e-3,
+                            start_values={"speed": SPEED, "track_start": START},
+                            output=["sensor_bogie1_acc_z", "bogie1_acc_z"])
+    ref = car_reference(car2d_spec(CAR.as_dict(), sensors=sensors), CAR, car_track[1], SPEED, res["time"],
+                        start=START)
+    assert nrmse(res["sensor_bogie1_acc_z"], ref["sensor_bogie1_acc_z"]) < 1e-3
+    assert nrmse(res["sensor_bogie1_acc_z"], res["bogie1_acc_z"]) > 0.05  # the pitch adds at 0.5 m
