@@ -16,7 +16,7 @@ from calibration.models.box import assemble, shinkansen_vehicle
 from calibration.models.box.reduction import ReducedVehicle, reduce_vehicle
 from calibration.truth.excitation import EXCITER, SENSOR_GRID
 
-from .variables import OUT_ACC, ModelSpec, Variable, _ordered
+from .variables import OUT_ACC, ModelSpec, Variable, _ordered, rail_inputs, standalone_variables
 
 DEFAULT_CUTOFF_HZ = 100.0
 DEFAULT_ZETA = 0.02
@@ -45,12 +45,7 @@ def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | Non
     v = [Variable("time", "Real", "independent", "continuous", "simulation time", "s"),
          Variable("zeta_carbody", "Real", "parameter", "tunable",
                   "damping ratio of the carbody's elastic modes (structural damping)", None, float(zeta))]
-    for j in range(1, 5):
-        v.append(Variable(f"z_rail_{j}", "Real", "input", "continuous", f"rail level under wheelset {j}", "m", 0.0,
-                          lti_input=True))
-    for j in range(1, 5):
-        v.append(Variable(f"dz_rail_{j}", "Real", "input", "continuous", f"time derivative of z_rail_{j}", "m/s", 0.0,
-                          input_rate_of=f"z_rail_{j}", lti_input=True))
+    v += rail_inputs()
     v.append(Variable("exciter_force", "Real", "input", "continuous",
                       f"vertical force of the exciter under the floor at {EXCITER.position} m (up positive)", "N",
                       0.0, lti_input=True))
@@ -59,15 +54,7 @@ def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | Non
         v.append(Variable(name, "Real", "output", "continuous",
                           f"vertical floor acceleration at ({s.position[0]:+.2f}, {s.position[1]:+.2f}) m", "m/s2",
                           output=(OUT_ACC, -1, 0.0, k)))
-    v.append(Variable("speed", "Real", "input", "continuous", "vehicle speed in stand-alone running", "m/s", 0.0))
-    v.append(Variable("track_start", "Real", "parameter", "fixed",
-                      "stand-alone: track distance of the carbody centre at the start time", "m", 0.0))
-    v.append(Variable("standalone", "Boolean", "parameter", "fixed",
-                      "run over track_file at the input speed instead of taking the rail inputs",
-                      start=track_file is not None))
-    v.append(Variable("track_file", "String", "parameter", "fixed",
-                      "stand-alone: track profile CSV (distance, level), a path or a name in resources/",
-                      start=track_file or ""))
+    v += standalone_variables(track_file)
     return _ordered(v)
 
 

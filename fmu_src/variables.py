@@ -93,6 +93,33 @@ def _ordered(variables: list[Variable]) -> tuple[Variable, ...]:
     return out
 
 
+def rail_inputs() -> list[Variable]:
+    """The rail level under wheelsets 1-4 (1 leads) and its rates: the wheel inputs of every
+    vehicle FMU (shared/spec/interfaces.md)."""
+    levels = [Variable(rail, "Real", "input", "continuous",
+                       f"rail level under wheelset {j} ({'leading' if j % 2 else 'trailing'} wheelset "
+                       f"of bogie {(j + 1) // 2})", "m", 0.0, lti_input=True)
+              for j, rail in enumerate(RAIL_INPUTS, start=1)]
+    return levels + [Variable(f"d{rail}", "Real", "input", "continuous", f"time derivative of {rail}", "m/s", 0.0,
+                              input_rate_of=rail, lti_input=True) for rail in RAIL_INPUTS]
+
+
+def standalone_variables(track_file: str | None) -> list[Variable]:
+    """Stand-alone running over a track profile: the speed input, the start position, the
+    switch (on by default when a track is shipped in resources/) and the profile file."""
+    return [
+        Variable("speed", "Real", "input", "continuous", "vehicle speed in stand-alone running", "m/s", 0.0),
+        Variable("track_start", "Real", "parameter", "fixed",
+                 "stand-alone: track distance of the carbody centre at the start time", "m", 0.0),
+        Variable("standalone", "Boolean", "parameter", "fixed",
+                 "run over track_file at the input speed instead of taking the rail inputs",
+                 start=track_file is not None),
+        Variable("track_file", "String", "parameter", "fixed",
+                 "stand-alone: track profile CSV (distance, level), a path or a name in resources/",
+                 start=track_file or ""),
+    ]
+
+
 def car2d_variables(parameters: dict[str, float], *, track_file: str | None = None,
                     sensors: tuple = ()) -> tuple[Variable, ...]:
     """The car FMU's variables: ``parameters`` (calibrated values, SI) become the tunable
@@ -106,13 +133,7 @@ def car2d_variables(parameters: dict[str, float], *, track_file: str | None = No
     for name, spec in CAR_PARAMETER_SPECS.items():
         v.append(Variable(name, "Real", "parameter", "tunable", spec.description, _SPEC_UNIT[spec.unit],
                           float(parameters[name])))
-    for j, rail in enumerate(RAIL_INPUTS, start=1):
-        v.append(Variable(rail, "Real", "input", "continuous",
-                          f"rail level under wheelset {j} ({'leading' if j == 1 else 'trailing'} wheelset "
-                          f"of bogie {(j + 1) // 2})", "m", 0.0, lti_input=True))
-    for j, rail in enumerate(RAIL_INPUTS, start=1):
-        v.append(Variable(f"d{rail}", "Real", "input", "continuous", f"time derivative of {rail}", "m/s", 0.0,
-                          input_rate_of=rail, lti_input=True))
+    v += rail_inputs()
     for b, body in enumerate(CAR_BODIES):
         v.append(Variable(f"{body}_acc_z", "Real", "output", "continuous",
                           f"vertical acceleration of the {body} centre of mass", "m/s2", output=(OUT_ACC, b, 0.0, -1)))
@@ -126,15 +147,7 @@ def car2d_variables(parameters: dict[str, float], *, track_file: str | None = No
         v.append(Variable(f"sensor_{name}", "Real", "output", "continuous",
                           f"vertical acceleration at the calibrated sensor {name} ({body}, {dx:+.3f} m)", "m/s2",
                           output=(OUT_ACC, CAR_BODIES.index(body), float(dx), -1)))
-    v.append(Variable("speed", "Real", "input", "continuous", "vehicle speed in stand-alone running", "m/s", 0.0))
-    v.append(Variable("track_start", "Real", "parameter", "fixed",
-                      "stand-alone: track distance of the carbody centre at the start time", "m", 0.0))
-    v.append(Variable("standalone", "Boolean", "parameter", "fixed",
-                      "run over track_file at the input speed instead of taking the rail inputs",
-                      start=track_file is not None))
-    v.append(Variable("track_file", "String", "parameter", "fixed",
-                      "stand-alone: track profile CSV (distance, level), a path or a name in resources/",
-                      start=track_file or ""))
+    v += standalone_variables(track_file)
     return _ordered(v)
 
 
