@@ -1,0 +1,155 @@
+"""The exudyn build of the 2D car (reference_models.car2d), issue 6: built from the parameter
+object alone, it must have railcal's eigenvalues (undamped to 1e-6, damped to 1e-4, relative)
+and railcal's response over a track (NRMSE <= 1e-3 per output), and the remaining
+difference must be exudyn's time-integration error.
+
+The 10 s figure and its wall time are printed by ``scripts/crosscheck_car.py``; here the
+runs are 1-2 s."""
+import exudyn as exu
+import numpy as np
+import pytest
+from conftest import CAR_FMU_SPEED as SPEED
+from conftest import CAR_FMU_START as START
+
+from calibration.models.vehicles import INTERCITY_TRAILER as CAR
+from calibration.models.vehicles import VEHICLES
+from fmu_src.reference import car_reference, nrmse, smooth_profile
+from fmu_src.variables import car2d_spec
+from reference_models.car2d import (BODIES, OUTPUTS, IntegratorSettings, RailInput, build_car_exudyn, eigen_errors,
+                                    exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn)
+
+VEHICLE_NAMES = sorted(VEHICLES)
+
+
+@pytest.fixture(scope="module")
+def track_rail():
+    """The FMU tests' track (900 m, seed 3) as the exudyn car's rail input, and its spline."""
+    s, z, profile = smooth_profile(900.0, seed=3)
+    return RailInput(s, z, SPEED, START), profile
+
+
+# ------------------------------------------------------------------ what is built
+
+def test_the_car_keeps_bounce_and_pitch_of_three_bodies_and_nothing_else():
+    mbs, h = build_car_exudyn(CAR)
+    dof = mbs.ComputeSystemDegreeOfFreedom()
+    assert dof["degreeOfFreedom"] == 6 and dof["redundantConstraints"] == 0
+    assert set(h.coordinates) == {f"{b}_{q}" for b in BODIES for q in ("z", "pitch")}
+    assert len(h.rail_constraints) == 4 and len(h.longitudinal_constraints) == 3 and len(h.springs) == 6
+
+
+def test_on_a_rail_rising_forward_the_car_starts_relaxed_and_nose_up():
+    """Rail level = a s: resting on it with every spring relaxed, each body sits at the rail
+    level under its centre and pitches by -a (railcal's pitch lowers the front)."""
+    a, start = 2e-3, 50.0
+    s = np.linspace(0.0, 200.0, 81)
+    mbs, h = build_car_exudyn(CAR, rail=RailInput(s, a * s, speed=10.0, start=start))
+    q = mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Initial)
+    x = {"carbody": 0.0, "bogie1": CAR.L_v, "bogie2": -CAR.L_v}
+    for b in BODIES:
+        (iz, sz), (ip, sp) = h.coordinates[f"{b}_z"], h.coordinates[f"{b}_pitch"]
+        assert sz * q[iz] == pytest.approx(a * (start + x[b]), rel=1e-12)
+        assert sp * q[ip] == pytest.approx(-a, rel=1e-12)
+
+
+# ------------------------------------------------------------------ eigenvalues
+
+@pytest.mark.parametrize("name", VEHICLE_NAMES)
+def test_undamped_frequencies_agree_with_railcal_to_1e_6(name):
+    p = VEHICLES[name]
+    ours, theirs = railcal_eigenvalues(p, damped=False), exudyn_eigenvalues(p, damped=False)
+    assert len(theirs) == 6
+    assert eigen_errors(ours, theirs).max() <= 1e-6, (ours, theirs)
+
+
+@pytest.mark.parametrize("name", VEHICLE_NAMES)
+def test_damped_eigenvalues_agree_with_railcal_to_1e_4(name):
+    p = VEHICLES[name]
+    ours, theirs = railcal_eigenvalues(p, damped=True), exudyn_eigenvalues(p, damped=True)
+    assert len(theirs) == 6 and np.all(theirs.real < 0)
+    assert eigen_errors(ours, theirs).max() <= 1e-4, (ours, theirs)
+
+
+@pytest.mark.parametrize("name", VEHICLE_NAMES)
+def test_bogie_pitch_is_the_closed_form_pair(name):
+    """The secondary acts at the bogie centre, so bogie pitch is decoupled:
+    J_b th'' + 2 c_p L_b^2 th' + 2 k_p L_b^2 th = 0, once per bogie."""
+    p = VEHICLES[name]
+    k, c = 2 * p.k_p * p.L_b**2 / p.J_b, 2 * p.c_p * p.L_b**2 / p.J_b
+    f = exudyn_eigenvalues(p, damped=False)
+    assert np.sum(np.isclose(f, np.sqrt(k) / (2 * np.pi), rtol=1e-12)) == 2
+    lam = exudyn_eigenvalues(p, damped=True)
+    assert np.sum(np.isclose(lam, complex(-c / 2, np.sqrt(k - c**2 / 4)), rtol=1e-12)) == 2
+
+
+# ------------------------------------------------------------------ response over a track
+
+def test_response_over_the_track_matches_railcal_within_nrmse_1e_3(track_rail):
+    rail, profile = track_rail
+    res = simulate_car_exudyn(CAR, rail, duration=2.0, output_interval=1e-3)
+    ref = car_reference(car2d_spec(CAR.as_dict()), CAR, profile, SPEED, res.t, start=START)
+    assert res.t[0] == 0.0 and res.t[-1] == pytest.approx(2.0) and len(res.t) == 2001
+    errors = {n: nrmse(res.outputs[n], ref[n]) for n in OUTPUTS}
+    assert max(errors.values()) <= 1e-3, errors
+    assert res.outputs["bogie1_acc_z"][0] == pytest.approx(ref["bogie1_acc_z"][0], rel=1e-6)  # same start
+
+
+def test_what_differs_from_railcal_is_second_order_integration_error(track_rail):
+    """Halving exudyn's step divides the NRMSE by ~4: the models agree, the integrator errs."""
+    rail, profile = track_rail
+    err = []
+    for h in (8e-4, 4e-4):
+        res = simulate_car_exudyn(CAR, rail, duration=1.0, output_interval=8e-4, settings=IntegratorSettings(h))
+        ref = car_reference(car2d_spec(CAR.as_dict()), CAR, profile, SPEED, res.t, start=START, substeps=16)
+        err.append(max(nrmse(res.outputs[n], ref[n]) for n in OUTPUTS))
+    assert 3.0 < err[0] / err[1] < 6.0, err
+
+
+def test_response_matches_the_car_fmu_within_nrmse_1e_3(car_fmus, track_rail):
+    """The FMU runs stand-alone over the same track file (resources/track.csv)."""
+    import fmpy
+
+    _, built = car_fmus
+    rail, _ = track_rail
+    res = simulate_car_exudyn(CAR, rail, duration=2.0, output_interval=1e-3)
+    fmu = fmpy.simulate_fmu(str(built[2].path), start_time=0.0, stop_time=2.0, output_interval=1e-3, step_size=1e-3,
+                            output=list(OUTPUTS), start_values={"speed": SPEED, "track_start": START})
+    np.testing.assert_allclose(fmu["time"], res.t, atol=1e-9)
+    errors = {n: nrmse(res.outputs[n], fmu[n]) for n in OUTPUTS}
+    assert max(errors.values()) <= 1e-3, errors
+
+
+# ------------------------------------------------------------------ bad input
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(distance=[0.0, 1.0, 1.0, 2.0], level=[0.0] * 4, speed=40.0), r"increase strictly; row 2 \(1.0 m\)"),
+    (dict(distance=[0.0, 1.0], level=[0.0, 0.0], speed=40.0), "at least 3 points"),
+    (dict(distance=[0.0, 1.0, 2.0], level=[0.0, 0.0], speed=40.0), "equal length"),
+    (dict(distance=[0.0, 1.0, 2.0], level=[0.0, np.nan, 0.0], speed=40.0), "finite"),
+    (dict(distance=[0.0, 1.0, 2.0], level=[0.0] * 3, speed=0.0), "speed = 0.0 m/s; must be > 0"),
+])
+def test_a_bad_rail_table_is_refused_saying_what_is_wrong(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        RailInput(**kwargs)
+
+
+def test_a_run_beyond_the_end_of_the_track_is_refused_naming_the_distances(track_rail):
+    rail, _ = track_rail
+    with pytest.raises(ValueError, match=r"track distances 90.\d\d-909.\d\d m in 20.0 s.*0.00-900.00 m"):
+        simulate_car_exudyn(CAR, rail, duration=20.0)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(duration=1.0, output_interval=1e-3, settings=IntegratorSettings(3e-4)), "multiple of the step size"),
+    (dict(duration=1.0005, output_interval=1e-3), "multiple of output_interval"),
+])
+def test_sampling_that_does_not_fit_the_steps_is_refused(track_rail, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        simulate_car_exudyn(CAR, track_rail[0], **kwargs)
+
+
+def test_integrator_settings_refuse_nonphysical_values():
+    with pytest.raises(ValueError, match="step_size = -0.001 s; must be > 0"):
+        IntegratorSettings(step_size=-1e-3)
+    with pytest.raises(ValueError, match=r"spectral_radius = 1.5; must be in \[0, 1\]"):
+        IntegratorSettings(spectral_radius=1.5)
