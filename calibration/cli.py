@@ -346,6 +346,43 @@ def cmd_export_fmu(args) -> int:
     return EXIT_OK
 
 
+def cmd_crosscheck(args) -> int:
+    from reference_models.crosscheck import crosscheck_car
+
+    from .data.campaign import read_track_file
+    from .models.parameters import CarParameters
+
+    calibration = _read_calibration(args.calibration)
+    if calibration.get("model", "car2d") != "car2d":
+        raise InputError("crosscheck covers the car model (model = car2d) so far; the box-type vehicle's exudyn "
+                         "check is scripts/crosscheck_box.py", path=Path(args.calibration), key="model")
+    try:
+        p = CarParameters.from_mapping(calibration["parameters"])
+    except ParameterError as e:
+        raise InputError(str(e), path=Path(args.calibration), key="parameters") from None
+    if not (args.speed > 0 and args.duration > 0):
+        raise InputError("--speed and --duration must be positive", key="--speed")
+    if args.profile:
+        rec = read_track_file(Path(args.profile))
+        distance, level = rec.distance, rec.level
+    else:  # a synthetic track: German low-disturbance spectrum, 3-70 m
+        from fmu_src.reference import smooth_profile
+
+        distance, level, _ = smooth_profile(args.speed * args.duration + 60.0, seed=3)
+    try:
+        report = crosscheck_car(p, distance, level, speed=args.speed, duration=args.duration,
+                                with_fmu=not args.no_fmu, plot=Path(args.out).with_suffix(".png"))
+    except ValueError as e:
+        raise InputError(str(e), path=Path(args.profile) if args.profile else None) from None
+    write_json_atomic(args.out, report)
+    e, t = report["eigen"], report["time"]
+    print(f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped eigenvalues "
+          f"{e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst NRMSE "
+          f"{t['worst_nrmse']:.1e} (exudyn, railcal{'' if args.no_fmu else ', FMU'}); verdict {report['verdict']}; "
+          f"wrote {args.out}")
+    return EXIT_OK
+
+
 # ------------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="railcal", description="Calibrate railway vehicle vibration models from measured data.")
@@ -422,6 +459,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="box model: carbody modes kept below this [Hz] (default 100), the rest statically corrected")
     s.add_argument("--out", required=True, help="the .fmu to write")
     s.set_defaults(func=cmd_export_fmu)
+
+    s = sub.add_parser("crosscheck", help="exudyn re-computation against railcal's model and its FMU")
+    s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
+    s.add_argument("--profile", default=None, help="track recording CSV (distance, level); default: synthetic")
+    s.add_argument("--speed", type=float, default=40.0, help="[m/s]")
+    s.add_argument("--duration", type=float, default=10.0, help="[s] of simulated time")
+    s.add_argument("--no-fmu", action="store_true", help="leave the FMU out (no C compiler)")
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_crosscheck)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output")

@@ -153,3 +153,24 @@ def test_integrator_settings_refuse_nonphysical_values():
         IntegratorSettings(step_size=-1e-3)
     with pytest.raises(ValueError, match=r"spectral_radius = 1.5; must be in \[0, 1\]"):
         IntegratorSettings(spectral_radius=1.5)
+
+
+def test_railcal_crosscheck_writes_eigen_and_time_comparisons_with_a_verdict(tmp_path, capsys):
+    import json
+
+    from calibration.cli import main
+    from calibration.models.vehicles import INTERCITY_TRAILER
+
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"model": "car2d", "parameters": INTERCITY_TRAILER.as_dict()}))
+    out = tmp_path / "xc.json"
+    assert main(["crosscheck", "--calibration", str(cal), "--duration", "2", "--out", str(out)]) == 0
+    rep = json.loads(out.read_text())
+    assert rep["verdict"] == "pass"
+    assert rep["eigen"]["undamped"]["max_relative_error"] < 1e-6 and rep["eigen"]["damped"]["max_relative_error"] < 1e-4
+    assert rep["time"]["worst_nrmse"] < 1e-3 and set(rep["time"]["outputs"]["bogie1_acc_z"]) == {
+        "rms", "exudyn_vs_railcal", "exudyn_vs_fmu", "fmu_vs_railcal"}
+    assert (tmp_path / "xc.png").read_bytes()[:4] == b"\x89PNG"
+    cal.write_text(json.dumps({"model": "car2d", "parameters": dict(INTERCITY_TRAILER.as_dict(), m_b=0.0)}))
+    assert main(["crosscheck", "--calibration", str(cal), "--out", str(tmp_path / "bad.json")]) == 2
+    assert "m_b" in capsys.readouterr().err and not (tmp_path / "bad.json").exists()

@@ -1,0 +1,124 @@
+"""``railcal crosscheck``: exudyn against railcal's own model and its FMU, with a verdict.
+
+For a car calibration: eigenfrequencies (undamped) and eigenvalues (damped) of the exudyn
+build (:mod:`reference_models.car2d`) against railcal's car model, and the time response
+over a track profile at a given speed, exudyn against railcal's exact response and against
+the car FMU (FMI 2, stand-alone over the same track in fmpy, 1 ms steps), as tables, an
+overlay plot and pass/fail against the tolerances below (issue 6).
+"""
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import scipy.interpolate
+
+from calibration.models.car2d import wheelset_positions
+from calibration.models.parameters import CarParameters
+from fmu_src.reference import car_reference, nrmse
+
+from .car2d import OUTPUTS, RailInput, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
+
+TOLERANCES = {"undamped_rel": 1e-6, "damped_rel": 1e-4, "nrmse": 1e-3, "wall_s_per_10_s": 30.0}
+OUTPUT_INTERVAL = 1e-3  # [s]
+
+
+def _eigen(p: CarParameters) -> dict:
+    out = {}
+    for kind, damped, tol in (("undamped", False, TOLERANCES["undamped_rel"]),
+                              ("damped", True, TOLERANCES["damped_rel"])):
+        ours, theirs = railcal_eigenvalues(p, damped=damped), exudyn_eigenvalues(p, damped=damped)
+        err = eigen_errors(ours, theirs)
+        fmt = (lambda v: float(v)) if not damped else (lambda v: [float(v.real), float(v.imag)])
+        out[kind] = {"railcal": [fmt(v) for v in ours],
+                     "exudyn": [fmt(theirs[int(np.argmin(np.abs(theirs - v)))]) for v in ours],
+                     "relative_error": err.tolist(), "max_relative_error": float(err.max()), "tolerance": tol,
+                     "pass": bool(err.max() <= tol)}
+    return out
+
+
+def _fmu_run(p: CarParameters, distance, level, speed, start, duration, workdir: Path) -> dict:
+    import fmpy
+
+    from fmu_src.build import build_fmu
+    from fmu_src.variables import car2d_spec
+
+    track = workdir / "track.csv"
+    np.savetxt(track, np.column_stack([distance, level]), delimiter=",", header="distance,level", comments="",
+               fmt="%.17g")
+    built = build_fmu(car2d_spec(p.as_dict(), track=track), 2, workdir / "car.fmu", platforms=("linux64",))
+    res = fmpy.simulate_fmu(str(built.path), stop_time=duration, output_interval=OUTPUT_INTERVAL,
+                            step_size=OUTPUT_INTERVAL, output=list(OUTPUTS),
+                            start_values={"speed": speed, "track_start": start})
+    return {n: np.asarray(res[n]) for n in OUTPUTS}
+
+
+def crosscheck_car(p: CarParameters, distance: np.ndarray, level: np.ndarray, *, speed: float = 40.0,
+                   duration: float = 10.0, with_fmu: bool = True, plot: Path | None = None) -> dict:
+    """The whole cross-check over the track (distance, level) [m]; the car starts with its
+    last wheelset 5 m into the track, and ``duration`` is cut to the track's length."""
+    distance, level = np.asarray(distance, float), np.asarray(level, float)
+    xw = wheelset_positions(p)
+    start = float(distance[0] - xw.min() + 5.0)
+    room = (distance[-1] - xw.max() - 5.0 - start) / speed
+    duration = float(np.floor(min(duration, room) / OUTPUT_INTERVAL) * OUTPUT_INTERVAL)
+    if duration <= 0:
+        raise ValueError(f"the track ({distance[0]:.1f}-{distance[-1]:.1f} m) is too short for the car at "
+                         f"{speed} m/s")
+    report = {"eigen": _eigen(p)}
+    t0 = time.perf_counter()
+    res = simulate_car_exudyn(p, RailInput(distance, level, speed, start), duration=duration,
+                              output_interval=OUTPUT_INTERVAL)
+    spline = scipy.interpolate.CubicSpline(distance, level, bc_type="natural")  # as the FMU and exudyn read it
+    from fmu_src.variables import car2d_spec
+
+    ref = car_reference(car2d_spec(p.as_dict()), p, lambda x: (spline(x), spline(x, 1), spline(x, 2), spline(x, 3)),
+                        speed, res.t, start=start)
+    wall = time.perf_counter() - t0
+    fmu = None
+    if with_fmu:
+        with tempfile.TemporaryDirectory(prefix="railcal_crosscheck_") as tmp:
+            fmu = _fmu_run(p, distance, level, speed, start, duration, Path(tmp))
+    rows, worst = {}, 0.0
+    for n in OUTPUTS:
+        row = {"rms": float(np.std(ref[n])), "exudyn_vs_railcal": nrmse(res.outputs[n], ref[n])}
+        if fmu is not None:
+            row["exudyn_vs_fmu"] = nrmse(res.outputs[n], fmu[n][:len(ref[n])])
+            row["fmu_vs_railcal"] = nrmse(fmu[n][:len(ref[n])], ref[n])
+        worst = max(worst, *(v for k, v in row.items() if k != "rms"))
+        rows[n] = row
+    wall_limit = TOLERANCES["wall_s_per_10_s"] * duration / 10.0
+    report["time"] = {"speed_m_s": speed, "duration_s": duration, "start_m": start, "outputs": rows,
+                      "worst_nrmse": worst, "tolerance": TOLERANCES["nrmse"],
+                      "wall_s_exudyn_and_reference": wall, "wall_limit_s": wall_limit,
+                      "pass": bool(worst <= TOLERANCES["nrmse"] and wall <= wall_limit)}
+    if plot is not None:
+        report["plot"] = str(_plot(res, ref, fmu, plot))
+    report["verdict"] = "pass" if all(report["eigen"][k]["pass"] for k in report["eigen"]) and \
+        report["time"]["pass"] else "fail"
+    return report
+
+
+def _plot(res, ref, fmu, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from calibration.identification.plots import save_figure
+
+    names = ("carbody_acc_z", "bogie1_acc_z", "bogie1_pitch_rate")
+    fig, axes = plt.subplots(len(names), 1, figsize=(9, 7), sharex=True)
+    k = res.t <= min(2.0, res.t[-1])
+    for ax, n in zip(axes, names):
+        ax.plot(res.t[k], ref[n][k], "k-", lw=2.5, alpha=0.4, label="railcal model")
+        ax.plot(res.t[k], res.outputs[n][k], "C0-", lw=1.0, label="exudyn")
+        if fmu is not None:
+            ax.plot(res.t[k], fmu[n][:len(res.t)][k], "C3--", lw=1.0, label="FMU (fmpy)")
+        ax.set_ylabel(n)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("exudyn cross-check over the track")
+    return save_figure(fig, path)
