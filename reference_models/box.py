@@ -1,0 +1,406 @@
+"""The box-type vehicle of :mod:`calibration.models.box`, built again in exudyn.
+
+An independent reference for railcal's reduced box vehicle
+(:func:`calibration.models.box.reduction.reduce_vehicle`). It is built from the vehicle
+description (:func:`calibration.models.box.shinkansen.shinkansen_vehicle`) and the stiffness
+factors only: the carbody's modal data come from the free carbody's own matrices
+(``assemble(free_carbody(vehicle))``, the flexible body's definition), never from the
+assembled vehicle or from the reduction; bogies and suspension are exudyn items.
+
+The model (carbody frame: x forward, y left, z up; no gravity, coordinates are deviations
+from static equilibrium):
+
+* carbody: ONE ``ObjectFFRFreducedOrder`` (CMS body). Its modal coordinates eta are the free
+  carbody's modes below ``cutoff_hz`` (the six rigid-body modes among them) and one
+  residual-flexibility pseudo-mode per carbody load (the exciter, and every suspension seat
+  along each axis its element acts in), M-orthonormal and K-diagonal: mass I, stiffness
+  diag(omega^2), damping diag(2 zeta omega) on every coordinate with omega > 2 pi 0.05 rad/s.
+  Because the rigid motion is carried by modes, the body's floating frame (a
+  ``NodeRigidBodyRxyz``) is held at the origin by six ``CoordinateConstraint``s and the FFRF
+  inertia terms are off (``computeFFRFterms=False``): the body is the linear modal model.
+  Its "mesh nodes" are the attachment points only: each suspension seat (the patch-mean
+  displacement of the seat, as railcal seats it), each floor sensor and the exciter, with the
+  rows of ``modeBasis`` = that point's displacement per mode;
+* bogies 1 and 2: ``ObjectRigidBody`` on ``NodeRigidBodyRxyz`` at their centres of mass, mass
+  and principal inertias from the vehicle description;
+* every suspension ``Link``: a ``CartesianSpringDamper`` (per-axis k [N/m] and c [N s/m]) from a
+  ``MarkerSuperElementPosition`` at the seat (or a ``MarkerBodyPosition`` on the ground for
+  the axle boxes) to a ``MarkerBodyPosition`` on the bogie. The wheelsets are held (rails at
+  level zero): the stationary excitation test;
+* the exciter: a ``LoadForceVector`` along +z on its mesh node, its force interpolated
+  linearly between the given samples; floor sensors: ``SensorSuperElement`` accelerations.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import exudyn as exu
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+import scipy.sparse.linalg
+from exudyn.itemInterface import (
+    CartesianSpringDamper,
+    CoordinateConstraint,
+    LoadForceVector,
+    MarkerBodyPosition,
+    MarkerNodeCoordinate,
+    MarkerSuperElementPosition,
+    NodeGenericODE2,
+    NodePointGround,
+    NodeRigidBodyRxyz,
+    ObjectFFRFreducedOrder,
+    ObjectGround,
+    ObjectRigidBody,
+    SensorSuperElement,
+    VObjectFFRFreducedOrder,
+)
+
+from calibration.models.box.assembly import BoxModel, _local_operator, assemble
+from calibration.models.box.fit import sensor_operator
+from calibration.models.box.shinkansen import free_carbody
+
+RIGID_HZ = 0.05  # [Hz] carbody modes below this are rigid-body motions (no structural damping)
+
+
+# ---------------------------------------------------------------------------- the flexible body
+@dataclass(frozen=True, eq=False)
+class CarbodyModes:
+    """The carbody as a modal flexible body.
+
+    Attributes
+    ----------
+    omega : (n,) [rad/s] of each modal coordinate (rigid ones ~0).
+    n_modes : number of true free-free modes (below the cut-off); the rest are pseudo-modes.
+    points : (n_p, 3) [m] attachment points (carbody frame).
+    names : (n_p,) what each point is: a Link name, a sensor name or the exciter's.
+    basis : (3 n_p, n) [m per unit eta] displacement x, y, z of each point per coordinate.
+    """
+
+    omega: np.ndarray
+    n_modes: int
+    points: np.ndarray
+    names: tuple
+    basis: np.ndarray
+    cutoff_hz: float
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+
+def _free_modes(cb: BoxModel, p: np.ndarray, cutoff_hz: float, shift_hz: float = 0.5):
+    """Free carbody modes up to ``cutoff_hz`` [Hz]: omega^2 [rad^2/s^2] and M-normalised shapes."""
+    K, M = cb.stiffness(p).tocsc(), cb.M.tocsc()
+    sigma = -(2 * np.pi * shift_hz) ** 2
+    v0 = np.random.default_rng(1).standard_normal(cb.n_dof)
+    k = 30
+    while True:
+        w2, X = scipy.sparse.linalg.eigsh(K, k=k, M=M, sigma=sigma, which="LM", v0=v0)
+        o = np.argsort(w2)
+        w2, X = w2[o], X[:, o]
+        if w2[-1] > (2 * np.pi * cutoff_hz) ** 2 or k >= cb.n_dof - 2:
+            break
+        k = min(2 * k, cb.n_dof - 2)
+    keep = w2 <= (2 * np.pi * cutoff_hz) ** 2
+    return np.clip(w2[keep], 0.0, None), X[:, keep], (K, M, sigma)
+
+
+def carbody_modes(vehicle, parameters, cutoff_hz: float, sensors, exciter) -> CarbodyModes:
+    """Modal data of the free carbody of ``vehicle`` at stiffness factors ``parameters``
+    (dict by name, or in the vehicle's parameter order): its modes below ``cutoff_hz`` [Hz] and
+    the residual-flexibility pseudo-modes of the loads at the suspension seats and the exciter
+    (static correction), and the displacement of every attachment point per coordinate."""
+    cb = assemble(free_carbody(vehicle))
+    names = cb.names
+    p = np.array([float(parameters[n]) for n in names]) if isinstance(parameters, dict) else \
+        np.asarray(parameters, float)
+    if p.shape != (len(names),):
+        raise ValueError(f"parameters: expected {len(names)} stiffness factors {names}, got shape {p.shape}")
+    panels = {pn.name for pn in vehicle.panels}
+    w2, X, (K, M, sigma) = _free_modes(cb, p, cutoff_hz)
+
+    pts, labels, ops, loads = [], [], [], []
+    for ln in vehicle.links:
+        if ln.body_a in panels:
+            idx, G = _local_operator(cb, ln.body_a, ln.point_a, patch=ln.patch)
+            full = np.zeros((3, cb.n_dof))
+            full[:, idx] = G
+            pts.append(ln.point_a)
+            labels.append(ln.name)
+            ops.append(full)
+            loads += [full[d] for d in range(3) if ln.k[d] or ln.c[d]]
+        elif ln.body_b in panels:
+            raise ValueError(f"link {ln.name}: a carbody end must be body_a")
+    for s in (exciter,) + tuple(sensors):
+        rows = np.zeros((3, cb.n_dof))
+        for d in "xyz":  # all three translations of the sensor's point
+            rows["xyz".index(d)] = sensor_operator(cb, (_along(s, d),))[0]
+        pts.append(s.position)
+        labels.append(s.name)
+        ops.append(rows)
+    loads.insert(0, ops[labels.index(exciter.name)]["xyz".index(exciter.direction)])
+
+    # pseudo-modes: shifted static shapes of the loads, less the kept modes, orthonormalised
+    lu = scipy.sparse.linalg.splu((K - sigma * M).tocsc())
+    Psi = lu.solve(np.column_stack(loads))
+    for _ in range(2):
+        Psi -= X @ (X.T @ (M @ Psi))
+    lam, U = np.linalg.eigh(Psi.T @ (M @ Psi))
+    ok = lam > lam.max() * 1e-10
+    Psi = Psi @ (U[:, ok] / np.sqrt(lam[ok]))
+    wp, Up = scipy.linalg.eigh(_sym(Psi.T @ (K @ Psi)))
+    V = np.hstack([X, Psi @ Up])
+    omega = np.sqrt(np.append(w2, np.clip(wp, 0.0, None)))
+    basis = np.vstack([op @ V for op in ops])
+    return CarbodyModes(omega, X.shape[1], np.array(pts, float), tuple(labels), basis, float(cutoff_hz))
+
+
+def _container(A: np.ndarray) -> exu.MatrixContainer:
+    mc = exu.MatrixContainer()
+    mc.SetWithDenseMatrix(A, useDenseMatrix=False)
+    return mc
+
+
+def _sym(A):
+    return 0.5 * (A + A.T)
+
+
+def _along(sensor, direction):
+    return replace(sensor, direction=direction)
+
+
+# ---------------------------------------------------------------------------- the model
+@dataclass(frozen=True, eq=False)
+class BoxHandles:
+    """Indices of the exudyn box vehicle's items.
+
+    ``carbody``: the CMS object; ``modal_node``: its modal coordinates; ``frame_node``: its held
+    floating frame; ``bogies`` / ``bogie_nodes`` by name; ``links``: connector per Link name;
+    ``mesh``: mesh-node index per attachment name (Link names, sensor names, exciter);
+    ``load``: the exciter load (None without force); ``modes``: the CarbodyModes used;
+    ``keep_alive``: the system container and user functions.
+    """
+
+    carbody: int
+    modal_node: int
+    frame_node: int
+    bogies: dict
+    bogie_nodes: dict
+    links: dict
+    mesh: dict
+    load: int | None
+    modes: CarbodyModes
+    keep_alive: tuple = field(repr=False, default=())
+
+
+def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float, sensors=None, exciter=None,
+                     rail=None, force=None) -> tuple[exu.MainSystem, BoxHandles]:
+    """Build and assemble the box-type vehicle on held wheelsets in exudyn.
+
+    Parameters
+    ----------
+    vehicle_model : BoxModel or BoxVehicle  the vehicle (only its description is read).
+    parameters : dict or array  stiffness factors (nominal 1) by name or in parameter order.
+    cutoff_hz : float  [Hz] carbody modes kept.
+    zeta : float  [-] modal damping ratio of the carbody's elastic coordinates.
+    sensors, exciter : campaign Sensors; default the excitation test's SENSOR_GRID, EXCITER.
+    rail : None  held wheelsets only (rail input is not implemented).
+    force : (t [s], F [N]) arrays, optional  exciter force (+z on the floor), linear between
+        samples, held at the last value after them.
+
+    Returns
+    -------
+    mbs : exudyn.MainSystem, assembled, at rest.
+    handles : BoxHandles
+    """
+    if rail is not None:
+        raise NotImplementedError("build_box_exudyn: rail input is not implemented; the wheelsets are held")
+    if not zeta >= 0:
+        raise ValueError(f"zeta = {zeta}; must be >= 0")
+    if sensors is None or exciter is None:
+        from calibration.truth.excitation import EXCITER, SENSOR_GRID
+        sensors = SENSOR_GRID if sensors is None else sensors
+        exciter = EXCITER if exciter is None else exciter
+    vehicle = getattr(vehicle_model, "vehicle", vehicle_model)
+    modes = carbody_modes(vehicle, parameters, cutoff_hz, sensors, exciter)
+    n = modes.omega.size
+
+    sc = exu.SystemContainer()
+    mbs = sc.AddSystem()
+    ground = mbs.AddObject(ObjectGround())
+    n_ground = mbs.AddNode(NodePointGround())
+    m_ground = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_ground, coordinate=0))
+
+    # carbody: CMS body with a held frame
+    frame = mbs.AddNode(NodeRigidBodyRxyz(referenceCoordinates=[0.0] * 6))
+    for i in range(6):
+        m = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=frame, coordinate=i))
+        mbs.AddObject(CoordinateConstraint(markerNumbers=[m_ground, m]))
+    modal = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n, initialCoordinates=[0.0] * n,
+                                        initialCoordinates_t=[0.0] * n, numberOfODE2Coordinates=n))
+    elastic = modes.omega > 2 * np.pi * RIGID_HZ
+    carbody = mbs.AddObject(ObjectFFRFreducedOrder(
+        nodeNumbers=[frame, modal], massMatrixReduced=_container(np.eye(n)),
+        stiffnessMatrixReduced=_container(np.diag(modes.omega**2)),
+        dampingMatrixReduced=_container(np.diag(np.where(elastic, 2.0 * zeta * modes.omega, 0.0))),
+        modeBasis=modes.basis, referencePositions=modes.points.ravel(), computeFFRFterms=True,
+        # the frame is held: its inertia and the frame-mode coupling act on held coordinates only
+        mass=1.0, inertia=np.eye(3), centerOfMass=[0.0] * 3,
+        mPsiTildePsi=np.zeros((3 * n, n)), mPsiTildePsiTilde=np.zeros((3 * n, 3 * n)),
+        mPhitTPsi=np.zeros((3, n)), mPhitTPsiTilde=np.zeros((3, 3 * n)),
+        mXRefTildePsi=np.zeros((3, n)), mXRefTildePsiTilde=np.zeros((3, 3 * n)),
+        visualization=VObjectFFRFreducedOrder(show=False)))
+    mesh = {name: i for i, name in enumerate(modes.names)}
+
+    def seat(name):
+        return mbs.AddMarker(MarkerSuperElementPosition(bodyNumber=carbody, meshNodeNumbers=[mesh[name]],
+                                                        weightingFactors=[1.0]))
+
+    bogies, bogie_nodes = {}, {}
+    for rb in vehicle.bodies:
+        if rb.fixed:
+            raise ValueError(f"rigid body {rb.name}: fixed DOFs are not supported")
+        bogie_nodes[rb.name] = mbs.AddNode(NodeRigidBodyRxyz(referenceCoordinates=list(rb.centre) + [0.0] * 3))
+        bogies[rb.name] = mbs.AddObject(ObjectRigidBody(nodeNumber=bogie_nodes[rb.name], mass=rb.mass,
+                                                        inertia=list(rb.inertia) + [0.0] * 3))
+
+    def body_point(body, point):
+        if body == "ground":
+            return mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=list(point)))
+        rb = next(b for b in vehicle.bodies if b.name == body)
+        return mbs.AddMarker(MarkerBodyPosition(bodyNumber=bogies[body],
+                                                localPosition=list(np.subtract(point, rb.centre))))
+
+    links = {}
+    for ln in vehicle.links:
+        a = seat(ln.name) if ln.name in mesh else body_point(ln.body_a, ln.point_a)
+        b = body_point(ln.body_b, ln.point_b)
+        # relaxed in the reference configuration: the offset is the ends' reference distance
+        links[ln.name] = mbs.AddObject(CartesianSpringDamper(
+            markerNumbers=[a, b], stiffness=list(ln.k), damping=list(ln.c),
+            offset=list(np.subtract(ln.point_b, ln.point_a))))
+
+    load, keep_alive = None, [sc]
+    if force is not None:
+        tf, F = (np.asarray(v, float) for v in force)
+        if tf.ndim != 1 or F.shape != tf.shape or np.any(np.diff(tf) <= 0):
+            raise ValueError("force: (t, F) must be 1-D of equal length with t strictly increasing")
+        direction = np.eye(3)["xyz".index(exciter.direction)]
+
+        def uf_force(mbs_, t, load_vector):
+            return list(np.interp(t, tf, F) * direction)
+
+        load = mbs.AddLoad(LoadForceVector(markerNumber=seat(exciter.name), loadVector=[0.0, 0.0, 0.0],
+                                           loadVectorUserFunction=uf_force))
+        keep_alive.append(uf_force)
+    mbs.Assemble()
+    return mbs, BoxHandles(carbody, modal, frame, bogies, bogie_nodes, links, mesh, load, modes, tuple(keep_alive))
+
+
+# ---------------------------------------------------------------------------- eigenvalues
+def exudyn_frequencies(mbs: exu.MainSystem, below_hz: float = 20.0) -> np.ndarray:
+    """Undamped natural frequencies [Hz] below ``below_hz`` of an assembled exudyn system, by
+    ``ComputeODE2Eigenvalues`` (constraints eliminated by its null-space projection)."""
+    ss = exu.SimulationSettings()
+    # At rest every connector is relaxed, so the derivative of the connector Jacobian (d J^T/dq
+    # times force) is zero; exudyn finds it by finite differences of marker positions ~10 m
+    # with a 1e-9 step, whose round-off alone moved the suspension modes by 2e-4 (relative).
+    ss.staticSolver.newton.numericalDifferentiation.jacobianConnectorDerivative = False
+    ss.solution.file.write = False  # no solution/ folder in the caller's directory
+    w2, _ = mbs.ComputeODE2Eigenvalues(simulationSettings=ss, useAbsoluteValues=False)
+    f = np.sqrt(np.clip(np.sort(np.asarray(w2, float)), 0.0, None)) / (2 * np.pi)
+    return f[f < below_hz]
+
+
+def reduced_frequencies(reduced, below_hz: float = 20.0) -> np.ndarray:
+    """Undamped natural frequencies [Hz] below ``below_hz`` of a railcal ReducedVehicle."""
+    w2 = scipy.linalg.eigh(reduced.K, reduced.M, eigvals_only=True)
+    f = np.sqrt(np.clip(w2, 0.0, None)) / (2 * np.pi)
+    return f[f < below_hz]
+
+
+def full_frequencies(model: BoxModel, parameters, below_hz: float = 20.0, shift_hz: float = 0.2) -> np.ndarray:
+    """Undamped natural frequencies [Hz] below ``below_hz`` of the full assembled box model."""
+    p = np.array([float(parameters[n]) for n in model.names]) if isinstance(parameters, dict) else \
+        np.asarray(parameters, float)
+    K, M = model.stiffness(p).tocsc(), model.M.tocsc()
+    v0 = np.random.default_rng(0).standard_normal(model.n_dof)
+    k = 40
+    while True:
+        w2 = scipy.sparse.linalg.eigsh(K, k=k, M=M, sigma=-(2 * np.pi * shift_hz) ** 2, which="LM", v0=v0,
+                                       return_eigenvectors=False)
+        f = np.sort(np.sqrt(np.clip(w2, 0.0, None)) / (2 * np.pi))
+        if f[-1] > below_hz or k >= model.n_dof - 2:
+            return f[f < below_hz]
+        k = min(2 * k, model.n_dof - 2)
+
+
+def eigen_errors(reference: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """|other - reference| / reference per reference value, after a one-to-one pairing by
+    least total distance; values without a partner (sets of unequal size) are left out of
+    ``other``, so the larger set must be ``other``."""
+    reference, other = np.asarray(reference), np.asarray(other)
+    rows, cols = scipy.optimize.linear_sum_assignment(np.abs(reference[:, None] - other[None, :]))
+    err = np.full(len(reference), np.inf)
+    err[rows] = np.abs(other[cols] - reference[rows]) / np.abs(reference[rows])
+    return err
+
+
+# ---------------------------------------------------------------------------- time response
+@dataclass(frozen=True, eq=False)
+class BoxResponse:
+    """Floor accelerations of the exudyn box vehicle.
+
+    t [s]; acc (n_t, n_sensors) [m/s^2] along each sensor's direction; sensors: names;
+    wall_time [s] of the time integration alone; build_time [s] (modes and items).
+    """
+
+    t: np.ndarray
+    acc: np.ndarray
+    sensors: tuple
+    wall_time: float
+    build_time: float
+
+
+def simulate_box_exudyn(vehicle_model, parameters, t_force: np.ndarray, force: np.ndarray, *, cutoff_hz: float,
+                        zeta: float, sensors=None, exciter=None, step_size: float = 2e-4,
+                        output_interval: float = 1e-3, spectral_radius: float = 1.0) -> BoxResponse:
+    """Exciter force ``force`` [N] at times ``t_force`` [s] (from t = 0, uniform) on the vehicle
+    at rest; floor accelerations every ``output_interval`` [s] up to t_force[-1], by exudyn's
+    generalized-alpha with ``step_size`` [s] (rho_inf = ``spectral_radius``)."""
+    if sensors is None:
+        from calibration.truth.excitation import SENSOR_GRID
+        sensors = SENSOR_GRID
+    ratio = output_interval / step_size
+    if abs(ratio - round(ratio)) > 1e-9 * ratio:
+        raise ValueError(f"output_interval {output_interval} s must be a multiple of step_size {step_size} s")
+    t0 = time.perf_counter()
+    mbs, h = build_box_exudyn(vehicle_model, parameters, cutoff_hz=cutoff_hz, zeta=zeta, sensors=sensors,
+                              exciter=exciter, force=(t_force, force))
+    out = [mbs.AddSensor(SensorSuperElement(bodyNumber=h.carbody, meshNodeNumber=h.mesh[s.name], storeInternal=True,
+                                            writeToFile=False, outputVariableType=exu.OutputVariableType.Acceleration))
+           for s in sensors]
+    mbs.Assemble()
+    build = time.perf_counter() - t0
+    ss = exu.SimulationSettings()
+    ti = ss.timeIntegration
+    ti.endTime = float(t_force[-1])
+    ti.numberOfSteps = round(ti.endTime / step_size)
+    ti.verboseMode = 0
+    ti.generalizedAlpha.spectralRadius = spectral_radius
+    ti.generalizedAlpha.computeInitialAccelerations = True
+    ti.newton.useModifiedNewton = True
+    ss.solution.file.write = False
+    ss.solution.sensors.writePeriod = output_interval
+    ss.show.statistics = False
+    ss.show.computationTime = False
+    t0 = time.perf_counter()
+    mbs.SolveDynamic(ss, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+    wall = time.perf_counter() - t0
+    cols, t = [], None
+    for s, k in zip(sensors, out):
+        data = np.asarray(mbs.GetSensorStoredData(k))
+        t = data[:, 0]
+        cols.append(data[:, 1 + "xyz".index(s.direction)])
+    return BoxResponse(t, np.column_stack(cols), tuple(s.name for s in sensors), wall, build)
