@@ -24,9 +24,14 @@ from static equilibrium):
 * bogies 1 and 2: ``ObjectRigidBody`` on ``NodeRigidBodyRxyz`` at their centres of mass, mass
   and principal inertias from the vehicle description;
 * every suspension ``Link``: a ``CartesianSpringDamper`` (per-axis k [N/m] and c [N s/m]) from a
-  ``MarkerSuperElementPosition`` at the seat (or a ``MarkerBodyPosition`` on the ground for
-  the axle boxes) to a ``MarkerBodyPosition`` on the bogie. The wheelsets are held (rails at
-  level zero): the stationary excitation test;
+  ``MarkerSuperElementPosition`` at the seat (or, for an axle box, a ``MarkerBodyPosition`` on
+  its wheelset's rail point) to a ``MarkerBodyPosition`` on the bogie;
+* the rail under wheelset j (1 leads: wheelset x descending, as railcal numbers them): a
+  vertical ``ObjectMass1D`` on a ``Node1D`` whose coordinate is prescribed to the rail level by
+  a ``CoordinateConstraint`` with symbolic spline offsets (:class:`reference_models.car2d.
+  RailInput`, C++ at run time); every axle box of that wheelset hangs on it, so its ground end
+  moves vertically with the rail (railcal: e = D q + e_z z_j). Without a rail the levels are
+  held at zero (the stationary excitation test);
 * the exciter: a ``LoadForceVector`` along +z on its mesh node, its force interpolated
   linearly between the given samples; floor sensors: ``SensorSuperElement`` accelerations.
 """
@@ -40,6 +45,7 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.sparse.linalg
+from exudyn.advancedUtilities import CreateSymbolicUserFunction
 from exudyn.itemInterface import (
     CartesianSpringDamper,
     CoordinateConstraint,
@@ -47,11 +53,12 @@ from exudyn.itemInterface import (
     MarkerBodyPosition,
     MarkerNodeCoordinate,
     MarkerSuperElementPosition,
+    Node1D,
     NodeGenericODE2,
     NodePointGround,
     NodeRigidBodyRxyz,
     ObjectFFRFreducedOrder,
-    ObjectGround,
+    ObjectMass1D,
     ObjectRigidBody,
     SensorSuperElement,
     VObjectFFRFreducedOrder,
@@ -60,8 +67,11 @@ from exudyn.itemInterface import (
 from calibration.models.box.assembly import BoxModel, _local_operator, assemble
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
+from reference_models.car2d import RailInput, _rail_functions
 
 RIGID_HZ = 0.05  # [Hz] carbody modes below this are rigid-body motions (no structural damping)
+RAIL_MASS = 1.0  # [kg] of each prescribed rail point (its motion is given: the value only scales a reaction)
+_UP = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # Mass1D's axis along z
 
 
 # ---------------------------------------------------------------------------- the flexible body
@@ -178,8 +188,10 @@ class BoxHandles:
     ``carbody``: the CMS object; ``modal_node``: its modal coordinates; ``frame_node``: its held
     floating frame; ``bogies`` / ``bogie_nodes`` by name; ``links``: connector per Link name;
     ``mesh``: mesh-node index per attachment name (Link names, sensor names, exciter);
-    ``load``: the exciter load (None without force); ``modes``: the CarbodyModes used;
-    ``keep_alive``: the system container and user functions.
+    ``rail_nodes`` / ``rail_constraints``: the prescribed rail point of wheelsets 1-4 and its
+    constraint; ``wheelset_x`` (4,) [m]: their positions; ``load``: the exciter load (None
+    without force); ``modes``: the CarbodyModes used; ``keep_alive``: the system container and
+    user functions.
     """
 
     carbody: int
@@ -189,14 +201,43 @@ class BoxHandles:
     bogie_nodes: dict
     links: dict
     mesh: dict
+    rail_nodes: tuple
+    rail_constraints: tuple
+    wheelset_x: np.ndarray
     load: int | None
     modes: CarbodyModes
     keep_alive: tuple = field(repr=False, default=())
 
 
+def axle_box_wheelsets(vehicle) -> np.ndarray:
+    """Track-wise positions [m] (carbody frame) of wheelsets 1-4, leading first: the distinct x
+    of the axle boxes' ground ends, as :func:`~calibration.models.box.reduction.reduce_vehicle`
+    numbers them."""
+    x = sorted({round(ln.point_a[0], 9) for ln in vehicle.links if ln.body_a == "ground" and ln.body_b != "ground"},
+               reverse=True)
+    if len(x) != 4:
+        raise ValueError(f"expected axle boxes (links from 'ground') at four wheelset positions, found x = {x} m")
+    return np.array(x, float)
+
+
+def rail_levels(rail: RailInput, wheelset_x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rail level [m] and its rate [m/s] under the wheelsets at ``wheelset_x`` [m] at times ``t`` [s],
+    each (n_t, n_wheelsets)."""
+    s = rail.start + rail.speed * np.asarray(t, float)[:, None] + np.asarray(wheelset_x)[None, :]
+    spline = rail.spline()
+    return spline(s), rail.speed * spline(s, 1)
+
+
+def _check_covers(rail: RailInput, wheelset_x: np.ndarray, duration: float) -> None:
+    first, last = rail.start + wheelset_x.min(), rail.start + rail.speed * duration + wheelset_x.max()
+    if first < rail.distance[0] or last > rail.distance[-1]:
+        raise ValueError(f"rail: the wheelsets run over track distances {first:.2f}-{last:.2f} m in {duration} s, "
+                         f"but the table covers only {rail.distance[0]:.2f}-{rail.distance[-1]:.2f} m")
+
+
 def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float, sensors=None, exciter=None,
-                     rail=None, force=None) -> tuple[exu.MainSystem, BoxHandles]:
-    """Build and assemble the box-type vehicle on held wheelsets in exudyn.
+                     rail: RailInput | None = None, force=None) -> tuple[exu.MainSystem, BoxHandles]:
+    """Build and assemble the box-type vehicle in exudyn, on rails.
 
     Parameters
     ----------
@@ -205,17 +246,19 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
     cutoff_hz : float  [Hz] carbody modes kept.
     zeta : float  [-] modal damping ratio of the carbody's elastic coordinates.
     sensors, exciter : campaign Sensors; default the excitation test's SENSOR_GRID, EXCITER.
-    rail : None  held wheelsets only (rail input is not implemented).
+    rail : RailInput, optional  the track passed at its speed [m/s] from ``rail.start`` [m]
+        (track distance of the carbody centre at t = 0); None holds every rail level at zero.
     force : (t [s], F [N]) arrays, optional  exciter force (+z on the floor), linear between
         samples, held at the last value after them.
 
     Returns
     -------
-    mbs : exudyn.MainSystem, assembled, at rest.
+    mbs : exudyn.MainSystem, assembled; initial state = static equilibrium on the rail levels at
+        t = 0 (found by exudyn's static solver), bodies at rest, rail points at the rails' rates.
     handles : BoxHandles
     """
-    if rail is not None:
-        raise NotImplementedError("build_box_exudyn: rail input is not implemented; the wheelsets are held")
+    if rail is not None and not isinstance(rail, RailInput):
+        raise TypeError(f"rail: expected a reference_models.car2d.RailInput, not {type(rail).__name__}")
     if not zeta >= 0:
         raise ValueError(f"zeta = {zeta}; must be >= 0")
     if sensors is None or exciter is None:
@@ -223,12 +266,12 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         sensors = SENSOR_GRID if sensors is None else sensors
         exciter = EXCITER if exciter is None else exciter
     vehicle = getattr(vehicle_model, "vehicle", vehicle_model)
+    wheelset_x = axle_box_wheelsets(vehicle)
     modes = carbody_modes(vehicle, parameters, cutoff_hz, sensors, exciter)
     n = modes.omega.size
 
     sc = exu.SystemContainer()
     mbs = sc.AddSystem()
-    ground = mbs.AddObject(ObjectGround())
     n_ground = mbs.AddNode(NodePointGround())
     m_ground = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_ground, coordinate=0))
 
@@ -265,15 +308,29 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         bogies[rb.name] = mbs.AddObject(ObjectRigidBody(nodeNumber=bogie_nodes[rb.name], mass=rb.mass,
                                                         inertia=list(rb.inertia) + [0.0] * 3))
 
+    # the rail under each wheelset: a vertical point mass whose level the rail prescribes
+    rail_nodes, rail_bodies, rail_constraints = [], [], []
+    for x in wheelset_x:
+        node = mbs.AddNode(Node1D(referenceCoordinates=[0.0]))
+        rail_nodes.append(node)
+        rail_bodies.append(mbs.AddObject(ObjectMass1D(nodeNumber=node, mass=RAIL_MASS, referencePosition=[x, 0.0, 0.0],
+                                                      referenceRotation=_UP)))
+        m = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=node, coordinate=0))
+        rail_constraints.append(mbs.AddObject(CoordinateConstraint(markerNumbers=[m_ground, m])))
+
     def body_point(body, point):
-        if body == "ground":
-            return mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=list(point)))
+        if body == "ground":  # an axle box's ground end: on its wheelset's rail point
+            j = int(np.argmin(np.abs(wheelset_x - point[0])))
+            local = _UP.T @ (np.asarray(point, float) - [wheelset_x[j], 0.0, 0.0])
+            return mbs.AddMarker(MarkerBodyPosition(bodyNumber=rail_bodies[j], localPosition=list(local)))
         rb = next(b for b in vehicle.bodies if b.name == body)
         return mbs.AddMarker(MarkerBodyPosition(bodyNumber=bogies[body],
                                                 localPosition=list(np.subtract(point, rb.centre))))
 
     links = {}
     for ln in vehicle.links:
+        if ln.body_b == "ground":
+            raise ValueError(f"link {ln.name}: a ground end must be body_a")
         a = seat(ln.name) if ln.name in mesh else body_point(ln.body_a, ln.point_a)
         b = body_point(ln.body_b, ln.point_b)
         # relaxed in the reference configuration: the offset is the ends' reference distance
@@ -295,7 +352,39 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
                                            loadVectorUserFunction=uf_force))
         keep_alive.append(uf_force)
     mbs.Assemble()
-    return mbs, BoxHandles(carbody, modal, frame, bogies, bogie_nodes, links, mesh, load, modes, tuple(keep_alive))
+
+    if rail is not None:
+        z0, dz0 = (v[0] for v in rail_levels(rail, wheelset_x, np.zeros(1)))
+        # static equilibrium on the rail levels at t = 0 (no gravity: the suspension's response to them)
+        for con, z in zip(rail_constraints, z0):
+            mbs.SetObjectParameter(con, "offset", float(z))
+        mbs.Assemble()
+        ss = exu.SimulationSettings()
+        ss.staticSolver.verboseMode = 0
+        ss.staticSolver.newton.numericalDifferentiation.jacobianConnectorDerivative = False
+        # linear: one Newton step leaves a residual of round-off (~1e-8 N against ~1e3 N in the
+        # springs), which the default relative goal would chase without end
+        ss.staticSolver.newton.absoluteTolerance = 1e-6
+        ss.solution.file.write = False
+        if not mbs.SolveStatic(ss):
+            raise RuntimeError("build_box_exudyn: exudyn's static solver failed on the rail levels at t = 0")
+        for node in [modal, *bogie_nodes.values()]:
+            q = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)
+            mbs.SetNodeParameter(node, "initialCoordinates", list(np.asarray(q, float)))
+        for node, z, dz in zip(rail_nodes, z0, dz0):
+            mbs.SetNodeParameter(node, "initialCoordinates", [float(z)])
+            mbs.SetNodeParameter(node, "initialVelocities", [float(dz)])
+        mbs.Assemble()  # symbolic user functions go in after assembly (exudyn's recipe)
+        for con, x in zip(rail_constraints, wheelset_x):
+            level, rate = _rail_functions(rail, float(x))
+            uf = CreateSymbolicUserFunction(mbs, level, "offsetUserFunction", con)
+            uf_t = CreateSymbolicUserFunction(mbs, rate, "offsetUserFunction_t", con)
+            mbs.SetObjectParameter(con, "offsetUserFunction", uf)
+            mbs.SetObjectParameter(con, "offsetUserFunction_t", uf_t)
+            keep_alive += [uf, uf_t]
+        mbs.Assemble()
+    return mbs, BoxHandles(carbody, modal, frame, bogies, bogie_nodes, links, mesh, tuple(rail_nodes),
+                           tuple(rail_constraints), wheelset_x, load, modes, tuple(keep_alive))
 
 
 # ---------------------------------------------------------------------------- eigenvalues
@@ -363,21 +452,28 @@ class BoxResponse:
     build_time: float
 
 
-def simulate_box_exudyn(vehicle_model, parameters, t_force: np.ndarray, force: np.ndarray, *, cutoff_hz: float,
-                        zeta: float, sensors=None, exciter=None, step_size: float = 2e-4,
-                        output_interval: float = 1e-3, spectral_radius: float = 1.0) -> BoxResponse:
-    """Exciter force ``force`` [N] at times ``t_force`` [s] (from t = 0, uniform) on the vehicle
-    at rest; floor accelerations every ``output_interval`` [s] up to t_force[-1], by exudyn's
+def simulate_box_exudyn(vehicle_model, parameters, *, duration: float, cutoff_hz: float, zeta: float,
+                        rail: RailInput | None = None, force=None, sensors=None, exciter=None,
+                        step_size: float = 2e-4, output_interval: float = 1e-3,
+                        spectral_radius: float = 1.0) -> BoxResponse:
+    """Floor accelerations of the vehicle over ``rail`` (None: rails held at level zero) with the
+    exciter force ``force`` = (t [s], F [N]) (None: no force), from static equilibrium on the
+    rails at t = 0, every ``output_interval`` [s] for ``duration`` [s], by exudyn's
     generalized-alpha with ``step_size`` [s] (rho_inf = ``spectral_radius``)."""
     if sensors is None:
         from calibration.truth.excitation import SENSOR_GRID
         sensors = SENSOR_GRID
     ratio = output_interval / step_size
-    if abs(ratio - round(ratio)) > 1e-9 * ratio:
+    if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
         raise ValueError(f"output_interval {output_interval} s must be a multiple of step_size {step_size} s")
+    n_out = round(duration / output_interval)
+    if n_out < 1 or abs(n_out * output_interval - duration) > 1e-9 * duration:
+        raise ValueError(f"duration {duration} s must be a positive multiple of output_interval {output_interval} s")
+    if rail is not None:
+        _check_covers(rail, axle_box_wheelsets(getattr(vehicle_model, "vehicle", vehicle_model)), duration)
     t0 = time.perf_counter()
     mbs, h = build_box_exudyn(vehicle_model, parameters, cutoff_hz=cutoff_hz, zeta=zeta, sensors=sensors,
-                              exciter=exciter, force=(t_force, force))
+                              exciter=exciter, rail=rail, force=force)
     out = [mbs.AddSensor(SensorSuperElement(bodyNumber=h.carbody, meshNodeNumber=h.mesh[s.name], storeInternal=True,
                                             writeToFile=False, outputVariableType=exu.OutputVariableType.Acceleration))
            for s in sensors]
@@ -385,13 +481,13 @@ def simulate_box_exudyn(vehicle_model, parameters, t_force: np.ndarray, force: n
     build = time.perf_counter() - t0
     ss = exu.SimulationSettings()
     ti = ss.timeIntegration
-    ti.endTime = float(t_force[-1])
+    ti.endTime = n_out * output_interval
     ti.numberOfSteps = round(ti.endTime / step_size)
     ti.verboseMode = 0
     ti.generalizedAlpha.spectralRadius = spectral_radius
     ti.generalizedAlpha.computeInitialAccelerations = True
-    ti.newton.useModifiedNewton = True
-    ss.solution.file.write = False
+    ti.newton.useModifiedNewton = True  # the model is linear: one Jacobian serves every step
+    ss.solution.file.write = False  # no solution/ folder in the caller's directory
     ss.solution.sensors.writePeriod = output_interval
     ss.show.statistics = False
     ss.show.computationTime = False

@@ -6,15 +6,21 @@ against railcal's reduced box vehicle and the full box model, at nominal stiffne
   relative) and (b) the full assembled model (eigsh; reported, same tolerance);
 * floor accelerations (27 sensors) to a 2 s band-random exciter force (5-50 Hz, 500 N rms,
   seed 7), zeta = 0.02: exudyn's generalized-alpha (step 1e-4 s) against the reduced
-  vehicle's exact response (ModalSimulator, first-order hold at 1 kHz); tolerance NRMSE 1e-2.
+  vehicle's exact response (ModalSimulator, first-order hold at 1 kHz); tolerance NRMSE 1e-2;
+* floor accelerations over a track (smooth_profile(900 m, seed 3), carbody centre from 100 m,
+  40 m/s, no exciter force; the axle boxes ride on the rail levels), exudyn (step 2e-4 s)
+  against railcal's exact reduced-vehicle response (fmu_src.reference.box_reference) and the
+  stand-alone box FMU (FMI 2, track in resources/, fmpy, 1 ms steps); tolerance NRMSE 1e-2.
 
-    python scripts/crosscheck_box.py [--coarse] [--cutoff 60]
+    python scripts/crosscheck_box.py [--coarse] [--cutoff 60] [--duration 2]
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -27,7 +33,9 @@ from calibration.truth.excitation import (
     band_random,
     build_model,
 )
-from fmu_src.reference import nrmse
+from fmu_src.box import box_spec
+from fmu_src.build import build_fmu
+from fmu_src.reference import box_reference, nrmse, smooth_profile
 from reference_models.box import (
     build_box_exudyn,
     eigen_errors,
@@ -36,15 +44,18 @@ from reference_models.box import (
     reduced_frequencies,
     simulate_box_exudyn,
 )
+from reference_models.car2d import RailInput
 
 TOL_EIG, TOL_NRMSE = 1e-4, 1e-2
 ZETA, BELOW_HZ, DURATION, FS, STEP = 0.02, 20.0, 2.0, 1000.0, 1e-4
+SPEED, START, TRACK_STEP = 40.0, 100.0, 2e-4  # [m/s], [m] carbody centre at t = 0, [s] exudyn step on the track
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--coarse", action="store_true", help="order_change = -4 (969 DOF) instead of full order")
     ap.add_argument("--cutoff", type=float, default=60.0, help="carbody modes kept [Hz]")
+    ap.add_argument("--duration", type=float, default=2.0, help="time over the track [s]")
     args = ap.parse_args()
     t0 = time.perf_counter()
     model = build_model(ExcitationSettings(order_change=-4 if args.coarse else 0))
@@ -80,7 +91,8 @@ def main() -> int:
     t0 = time.perf_counter()
     ref = ModalSimulator(reduced.state_space(ZETA), 1.0 / FS).step_chunk(w)
     t_ref = time.perf_counter() - t0
-    res = simulate_box_exudyn(model, p, t, force, cutoff_hz=args.cutoff, zeta=ZETA, step_size=STEP)
+    res = simulate_box_exudyn(model, p, duration=t[-1], force=(t, force), cutoff_hz=args.cutoff, zeta=ZETA,
+                              step_size=STEP)
     err = np.array([nrmse(res.acc[:, i], ref[:, i]) for i in range(len(SENSOR_GRID))])
     ok_t = err.max() <= TOL_NRMSE
     print(f"\nfloor accelerations, {DURATION:g} s band-random 5-50 Hz 500 N rms, zeta {ZETA:g}, step {STEP:g} s")
@@ -88,7 +100,45 @@ def main() -> int:
           f"{np.median(err):.2e} (tol {TOL_NRMSE:g}) -> {'PASS' if ok_t else 'FAIL'}")
     print(f"  wall: exudyn integration {res.wall_time:.1f} s (+ build {res.build_time:.1f} s); exact reference "
           f"{t_ref:.2f} s")
-    return 0 if ok_eig and ok_t else 1
+    ok_track = over_the_track(model, p, reduced, args.cutoff, args.duration)
+    return 0 if ok_eig and ok_t and ok_track else 1
+
+
+def over_the_track(model, p, reduced, cutoff: float, duration: float) -> bool:
+    """exudyn, railcal and the FMU over the track, no exciter force; prints the table."""
+    s, z, profile = smooth_profile(900.0, seed=3)
+    rail = RailInput(s, z, SPEED, START)
+    res = simulate_box_exudyn(model, p, duration=duration, rail=rail, cutoff_hz=cutoff, zeta=ZETA,
+                              step_size=TRACK_STEP)
+    t = res.t
+    t0 = time.perf_counter()
+    ref = box_reference(reduced, ZETA, profile, SPEED, t, np.zeros(t.size), start=START)
+    t_ref = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as tmp:
+        track = Path(tmp) / "track.csv"
+        np.savetxt(track, np.column_stack([s, z]), delimiter=",", header="distance,level", comments="", fmt="%.17g")
+        fmu = build_fmu(box_spec({"model": "box", "parameters": {}}, reduced=reduced, track=track), 2,
+                        Path(tmp) / "box2.fmu")
+        import fmpy
+
+        t0 = time.perf_counter()
+        out = fmpy.simulate_fmu(str(fmu.path), stop_time=t[-1], step_size=1e-3, output_interval=1e-3,
+                                start_values={"speed": SPEED, "track_start": START, "zeta_carbody": ZETA},
+                                output=list(res.sensors))
+        t_fmu = time.perf_counter() - t0
+    y_fmu = np.column_stack([out[n] for n in res.sensors])
+    e_ref = np.array([nrmse(res.acc[:, i], ref[:, i]) for i in range(ref.shape[1])])
+    e_fmu = np.array([nrmse(res.acc[:, i], y_fmu[:, i]) for i in range(ref.shape[1])])
+    e_rf = np.array([nrmse(y_fmu[:, i], ref[:, i]) for i in range(ref.shape[1])])
+    ok = max(e_ref.max(), e_fmu.max()) <= TOL_NRMSE
+    print(f"\nfloor accelerations over the track ({duration:g} s at {SPEED:g} m/s from {START:g} m, no exciter "
+          f"force; rms {np.sqrt(np.mean(ref**2)):.3f} m/s^2), exudyn step {TRACK_STEP:g} s")
+    for label, e in (("exudyn vs railcal", e_ref), ("exudyn vs FMU", e_fmu), ("FMU vs railcal", e_rf)):
+        print(f"  {label:>18}: NRMSE max {e.max():.2e} ({res.sensors[int(np.argmax(e))]}), median {np.median(e):.2e}")
+    print(f"  (tol {TOL_NRMSE:g} on exudyn's) -> {'PASS' if ok else 'FAIL'}")
+    print(f"  wall: exudyn integration {res.wall_time:.1f} s (+ build {res.build_time:.1f} s); railcal exact "
+          f"{t_ref:.1f} s; FMU (fmpy, 1 ms) {t_fmu:.2f} s")
+    return ok
 
 
 if __name__ == "__main__":

@@ -4,9 +4,15 @@ built from the vehicle description and the stiffness factors alone. On the coars
 (order_change = -4, 969 DOF) it must have railcal's vehicle eigenfrequencies below 20 Hz
 (reduced vehicle and full model, 1e-4 relative), railcal's static floor deflection under the
 exciter, and railcal's exact floor accelerations to a band-random exciter force
-(NRMSE <= 1e-2 per sensor). The full-order figures: ``scripts/crosscheck_box.py``."""
+(NRMSE <= 1e-2 per sensor); over the track (conftest's car_track at 40 m/s, axle boxes on
+the rail levels) its floor accelerations must match railcal's exact reduced-vehicle
+response and the stand-alone box FMU (FMI 2, fmpy, 1 ms) within NRMSE 1e-2 per sensor.
+The full-order figures: ``scripts/crosscheck_box.py``."""
+import fmpy
 import numpy as np
 import pytest
+from conftest import CAR_FMU_SPEED as SPEED
+from conftest import CAR_FMU_START as START
 
 from calibration.models.box.reduction import reduce_vehicle
 from calibration.models.simulate import ModalSimulator
@@ -17,7 +23,9 @@ from calibration.truth.excitation import (
     band_random,
     build_model,
 )
-from fmu_src.reference import nrmse
+from fmu_src.box import box_spec
+from fmu_src.build import build_fmu
+from fmu_src.reference import box_reference, nrmse
 from reference_models.box import (
     build_box_exudyn,
     eigen_errors,
@@ -26,6 +34,7 @@ from reference_models.box import (
     reduced_frequencies,
     simulate_box_exudyn,
 )
+from reference_models.car2d import RailInput
 
 CUTOFF, ZETA = 60.0, 0.02
 
@@ -87,16 +96,50 @@ def test_floor_accelerations_to_a_band_random_force_match_railcal_within_nrmse_1
     w = np.zeros((n, 9))
     w[:, 8] = force
     ref = ModalSimulator(reduced.state_space(ZETA), 1.0 / fs).step_chunk(w)
-    res = simulate_box_exudyn(model, p, t, force, cutoff_hz=CUTOFF, zeta=ZETA, step_size=1e-4)
+    res = simulate_box_exudyn(model, p, duration=t[-1], force=(t, force), cutoff_hz=CUTOFF, zeta=ZETA, step_size=1e-4)
     assert res.sensors == tuple(s.name for s in SENSOR_GRID)
     np.testing.assert_allclose(res.t, t, atol=1e-9)
     assert np.sqrt(np.mean(ref**2)) > 0.01  # [m/s^2] a real response
     assert max(nrmse(res.acc[:, i], ref[:, i]) for i in range(len(SENSOR_GRID))) <= 1e-2
 
 
-def test_rail_input_and_bad_damping_are_refused_by_name(coarse):
+@pytest.fixture(scope="module")
+def over_the_track(coarse, car_track, tmp_path_factory):
+    """0.5 s over the track at 40 m/s, no exciter force: (t, exudyn response, railcal, FMU)."""
+    model, p, reduced = coarse
+    path, profile = car_track
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    rail = RailInput(table[:, 0], table[:, 1], SPEED, START)
+    res = simulate_box_exudyn(model, p, duration=0.5, rail=rail, cutoff_hz=CUTOFF, zeta=ZETA, step_size=2e-4)
+    t = res.t
+    ref = box_reference(reduced, ZETA, profile, SPEED, t, np.zeros(t.size), start=START)
+    fmu = build_fmu(box_spec({"model": "box", "parameters": {}}, reduced=reduced, track=path), 2,
+                    tmp_path_factory.mktemp("box_ref") / "box2.fmu")
+    out = fmpy.simulate_fmu(str(fmu.path), stop_time=t[-1], step_size=1e-3, output_interval=1e-3,
+                            start_values={"speed": SPEED, "track_start": START, "zeta_carbody": ZETA},
+                            output=[s.name for s in SENSOR_GRID])
+    return t, res, ref, np.column_stack([out[s.name] for s in SENSOR_GRID])
+
+
+def test_floor_accelerations_over_the_track_match_railcal_and_the_fmu_within_nrmse_1e_2(over_the_track):
+    t, res, ref, fmu = over_the_track
+    assert res.sensors == tuple(s.name for s in SENSOR_GRID) and fmu.shape == ref.shape == res.acc.shape
+    np.testing.assert_allclose(t, np.arange(501) * 1e-3, atol=1e-9)  # [s] 1 ms samples over 0.5 s
+    assert np.sqrt(np.mean(ref**2)) > 0.05  # [m/s^2] the track shakes the floor (measured 0.12)
+    # started in static equilibrium on the rail: the floor is at rest at t = 0
+    assert np.abs(res.acc[0]).max() <= 1e-6 * np.abs(ref).max()
+    railcal = [nrmse(res.acc[:, i], ref[:, i]) for i in range(len(SENSOR_GRID))]
+    fmi = [nrmse(res.acc[:, i], fmu[:, i]) for i in range(len(SENSOR_GRID))]
+    assert max(railcal) <= 1e-2, max(railcal)  # measured 7.3e-4 (step 2e-4 s)
+    assert max(fmi) <= 1e-2, max(fmi)  # measured 7.3e-4; the FMU itself is within 8e-6 of railcal
+
+
+def test_bad_rail_and_bad_damping_are_refused_by_name(coarse):
     model, p, _ = coarse
-    with pytest.raises(NotImplementedError, match="rail input"):
+    with pytest.raises(TypeError, match="RailInput"):
         build_box_exudyn(model, p, cutoff_hz=CUTOFF, zeta=ZETA, rail=object())
+    short = RailInput(np.array([0.0, 50.0, 100.0]), np.zeros(3), SPEED, 50.0)
+    with pytest.raises(ValueError, match="covers only 0.00-100.00 m"):
+        simulate_box_exudyn(model, p, duration=2.0, rail=short, cutoff_hz=CUTOFF, zeta=ZETA)
     with pytest.raises(ValueError, match="zeta"):
         build_box_exudyn(model, p, cutoff_hz=CUTOFF, zeta=-0.1)
