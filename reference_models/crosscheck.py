@@ -122,3 +122,76 @@ def _plot(res, ref, fmu, path: Path) -> Path:
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("exudyn cross-check over the track")
     return save_figure(fig, path)
+
+
+def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *, speed: float = 40.0,
+                   duration: float = 1.0, cutoff_hz: float = 60.0, with_fmu: bool = True) -> dict:
+    """The box-type vehicle's cross-check (:mod:`reference_models.box`): frequencies below
+    20 Hz of the exudyn build against railcal's reduced vehicle and the full box model, and the
+    27 floor accelerations over the track (no exciter force), exudyn against railcal's exact
+    response of the reduced vehicle and the box FMU. exudyn integrates at 2e-4 s, about six
+    seconds of wall time per simulated second at full order: keep ``duration`` short."""
+    from calibration.models.box import assemble, shinkansen_vehicle
+    from fmu_src.box import box_reduced, box_spec, calibrated_damping
+    from fmu_src.reference import box_reference
+
+    from .box import (eigen_errors as box_eigen_errors, build_box_exudyn, exudyn_frequencies, full_frequencies,
+                      reduced_frequencies, simulate_box_exudyn)
+
+    distance, level = np.asarray(distance, float), np.asarray(level, float)
+    reduced = box_reduced(calibration, cutoff_hz)  # parameters checked here (exit 2 on bad ones)
+    model = assemble(shinkansen_vehicle())
+    p = {n: float(calibration["parameters"].get(n, 1.0)) for n in model.names}
+    zeta = calibrated_damping(calibration)
+    mbs, _ = build_box_exudyn(model, p, cutoff_hz=cutoff_hz, zeta=zeta)
+    ex, red, full = exudyn_frequencies(mbs), reduced_frequencies(reduced), full_frequencies(model, p)
+    e_red, e_full = box_eigen_errors(red, ex), box_eigen_errors(full, ex)
+    tol = 1e-4
+    report = {"eigen": {"below_hz": 20.0, "exudyn": ex.tolist(), "railcal_reduced": red.tolist(),
+                        "railcal_full": full.tolist(), "max_relative_error_vs_reduced": float(e_red.max()),
+                        "max_relative_error_vs_full": float(e_full.max()), "tolerance": tol,
+                        "pass": bool(max(e_red.max(), e_full.max()) <= tol and len(ex) == len(red) == len(full))}}
+    xw = reduced.wheelset_x
+    start = float(distance[0] - xw.min() + 5.0)
+    duration = float(np.floor(min(duration, (distance[-1] - xw.max() - 5.0 - start) / speed) / OUTPUT_INTERVAL)
+                     * OUTPUT_INTERVAL)
+    if duration <= 0:
+        raise ValueError(f"the track ({distance[0]:.1f}-{distance[-1]:.1f} m) is too short for the vehicle")
+    t0 = time.perf_counter()
+    res = simulate_box_exudyn(model, p, duration=duration, rail=RailInput(distance, level, speed, start),
+                              cutoff_hz=cutoff_hz, zeta=zeta)
+    spline = scipy.interpolate.CubicSpline(distance, level, bc_type="natural")
+    ref = box_reference(reduced, zeta, lambda x: (spline(x), spline(x, 1), spline(x, 2), spline(x, 3)), speed,
+                        res.t, np.zeros(res.t.size), start=start)
+    wall = time.perf_counter() - t0
+    rows = {}
+    fmu = None
+    if with_fmu:
+        import fmpy
+
+        from fmu_src.build import build_fmu
+
+        with tempfile.TemporaryDirectory(prefix="railcal_crosscheck_") as tmp:
+            track = Path(tmp) / "track.csv"
+            np.savetxt(track, np.column_stack([distance, level]), delimiter=",", header="distance,level",
+                       comments="", fmt="%.17g")
+            built = build_fmu(box_spec(calibration, reduced=reduced, track=track), 2, Path(tmp) / "box.fmu",
+                              platforms=("linux64",))
+            out = fmpy.simulate_fmu(str(built.path), stop_time=float(res.t[-1]), step_size=OUTPUT_INTERVAL,
+                                    output_interval=OUTPUT_INTERVAL, output=list(res.sensors),
+                                    start_values={"speed": speed, "track_start": start, "zeta_carbody": zeta})
+            fmu = np.column_stack([out[n] for n in res.sensors])
+    worst = 0.0
+    for i, name in enumerate(res.sensors):
+        row = {"rms": float(np.std(ref[:, i])), "exudyn_vs_railcal": nrmse(res.acc[:, i], ref[:, i])}
+        if fmu is not None:
+            row["exudyn_vs_fmu"] = nrmse(res.acc[:, i], fmu[:, i])
+            row["fmu_vs_railcal"] = nrmse(fmu[:, i], ref[:, i])
+        worst = max(worst, row["exudyn_vs_railcal"], row.get("exudyn_vs_fmu", 0.0))
+        rows[name] = row
+    limit = 1e-2
+    report["time"] = {"speed_m_s": speed, "duration_s": duration, "start_m": start, "outputs": rows,
+                      "worst_nrmse": worst, "tolerance": limit, "wall_s_exudyn_and_reference": wall,
+                      "exudyn_build_s": res.build_time, "pass": bool(worst <= limit)}
+    report["verdict"] = "pass" if report["eigen"]["pass"] and report["time"]["pass"] else "fail"
+    return report

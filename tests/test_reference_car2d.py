@@ -174,3 +174,6 @@ def test_railcal_crosscheck_writes_eigen_and_time_comparisons_with_a_verdict(tmp
     cal.write_text(json.dumps({"model": "car2d", "parameters": dict(INTERCITY_TRAILER.as_dict(), m_b=0.0)}))
     assert main(["crosscheck", "--calibration", str(cal), "--out", str(tmp_path / "bad.json")]) == 2
     assert "m_b" in capsys.readouterr().err and not (tmp_path / "bad.json").exists()
+    cal.write_text(json.dumps({"model": "box", "parameters": {"roof_membrane": -1.0}}))
+    assert main(["crosscheck", "--calibration", str(cal), "--out", str(tmp_path / "bad.json")]) == 2
+    assert "roof_membrane" in capsys.readouterr().err and not (tmp_path / "bad.json").exists()
