@@ -3,9 +3,11 @@
 An independent reference for railcal's reduced box vehicle
 (:func:`calibration.models.box.reduction.reduce_vehicle`). It is built from the vehicle
 description (:func:`calibration.models.box.shinkansen.shinkansen_vehicle`) and the stiffness
-factors only: the carbody's modal data come from the free carbody's own matrices
-(``assemble(free_carbody(vehicle))``, the flexible body's definition), never from the
-assembled vehicle or from the reduction; bogies and suspension are exudyn items.
+factors only: the carbody's modal data (the flexible body's definition) are its free-free
+modes and static-correction pseudo-modes from the free carbody's own matrices
+(``assemble(free_carbody(vehicle))``, by railcal's
+:func:`~calibration.models.box.reduction.carbody_basis`); the vehicle around it, bogies,
+suspension and rails, is exudyn's items, never railcal's assembled vehicle or reduced matrices.
 
 The model (carbody frame: x forward, y left, z up; no gravity, coordinates are deviations
 from static equilibrium):
@@ -16,8 +18,9 @@ from static equilibrium):
   along each axis its element acts in), M-orthonormal and K-diagonal: mass I, stiffness
   diag(omega^2), damping diag(2 zeta omega) on every coordinate with omega > 2 pi 0.05 rad/s.
   Because the rigid motion is carried by modes, the body's floating frame (a
-  ``NodeRigidBodyRxyz``) is held at the origin by six ``CoordinateConstraint``s and the FFRF
-  inertia terms are off (``computeFFRFterms=False``): the body is the linear modal model.
+  ``NodeRigidBodyRxyz``) is held at the origin by six ``CoordinateConstraint``s; the FFRF
+  terms stay on (exudyn builds the reduced mass matrix with them) with zero coupling matrices,
+  which act on the held coordinates only: the body is the linear modal model.
   Its "mesh nodes" are the attachment points only: each suspension seat (the patch-mean
   displacement of the seat, as railcal seats it), each floor sensor and the exciter, with the
   rows of ``modeBasis`` = that point's displacement per mode;
@@ -65,6 +68,7 @@ from exudyn.itemInterface import (
 )
 
 from calibration.models.box.assembly import BoxModel, _local_operator, assemble
+from calibration.models.box.reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
 from reference_models.car2d import RailInput, _rail_functions
@@ -99,23 +103,6 @@ class CarbodyModes:
         return self.names.index(name)
 
 
-def _free_modes(cb: BoxModel, p: np.ndarray, cutoff_hz: float, shift_hz: float = 0.5):
-    """Free carbody modes up to ``cutoff_hz`` [Hz]: omega^2 [rad^2/s^2] and M-normalised shapes."""
-    K, M = cb.stiffness(p).tocsc(), cb.M.tocsc()
-    sigma = -(2 * np.pi * shift_hz) ** 2
-    v0 = np.random.default_rng(1).standard_normal(cb.n_dof)
-    k = 30
-    while True:
-        w2, X = scipy.sparse.linalg.eigsh(K, k=k, M=M, sigma=sigma, which="LM", v0=v0)
-        o = np.argsort(w2)
-        w2, X = w2[o], X[:, o]
-        if w2[-1] > (2 * np.pi * cutoff_hz) ** 2 or k >= cb.n_dof - 2:
-            break
-        k = min(2 * k, cb.n_dof - 2)
-    keep = w2 <= (2 * np.pi * cutoff_hz) ** 2
-    return np.clip(w2[keep], 0.0, None), X[:, keep], (K, M, sigma)
-
-
 def carbody_modes(vehicle, parameters, cutoff_hz: float, sensors, exciter) -> CarbodyModes:
     """Modal data of the free carbody of ``vehicle`` at stiffness factors ``parameters``
     (dict by name, or in the vehicle's parameter order): its modes below ``cutoff_hz`` [Hz] and
@@ -128,8 +115,6 @@ def carbody_modes(vehicle, parameters, cutoff_hz: float, sensors, exciter) -> Ca
     if p.shape != (len(names),):
         raise ValueError(f"parameters: expected {len(names)} stiffness factors {names}, got shape {p.shape}")
     panels = {pn.name for pn in vehicle.panels}
-    w2, X, (K, M, sigma) = _free_modes(cb, p, cutoff_hz)
-
     pts, labels, ops, loads = [], [], [], []
     for ln in vehicle.links:
         if ln.body_a in panels:
@@ -151,29 +136,17 @@ def carbody_modes(vehicle, parameters, cutoff_hz: float, sensors, exciter) -> Ca
         ops.append(rows)
     loads.insert(0, ops[labels.index(exciter.name)]["xyz".index(exciter.direction)])
 
-    # pseudo-modes: shifted static shapes of the loads, less the kept modes, orthonormalised
-    lu = scipy.sparse.linalg.splu((K - sigma * M).tocsc())
-    Psi = lu.solve(np.column_stack(loads))
-    for _ in range(2):
-        Psi -= X @ (X.T @ (M @ Psi))
-    lam, U = np.linalg.eigh(Psi.T @ (M @ Psi))
-    ok = lam > lam.max() * 1e-10
-    Psi = Psi @ (U[:, ok] / np.sqrt(lam[ok]))
-    wp, Up = scipy.linalg.eigh(_sym(Psi.T @ (K @ Psi)))
-    V = np.hstack([X, Psi @ Up])
-    omega = np.sqrt(np.append(w2, np.clip(wp, 0.0, None)))
+    # the modes below the cut-off and the pseudo-modes of these loads: the carbody's own modal
+    # data (calibration.models.box.reduction); the vehicle around it is exudyn's
+    V, omega, n_modes = carbody_basis(cb, p, cutoff_hz, np.column_stack(loads))
     basis = np.vstack([op @ V for op in ops])
-    return CarbodyModes(omega, X.shape[1], np.array(pts, float), tuple(labels), basis, float(cutoff_hz))
+    return CarbodyModes(omega, n_modes, np.array(pts, float), tuple(labels), basis, float(cutoff_hz))
 
 
 def _container(A: np.ndarray) -> exu.MatrixContainer:
     mc = exu.MatrixContainer()
     mc.SetWithDenseMatrix(A, useDenseMatrix=False)
     return mc
-
-
-def _sym(A):
-    return 0.5 * (A + A.T)
 
 
 def _along(sensor, direction):

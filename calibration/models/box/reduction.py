@@ -70,7 +70,7 @@ class ReducedVehicle:
         return StateSpace(A, B, self.S @ acc_x, self.S @ acc_w, self.sensors, inputs)
 
 
-def _carbody_basis(cb: BoxModel, p, cutoff_hz: float, loads: np.ndarray, shift_hz: float = 0.5):
+def carbody_basis(cb: BoxModel, p, cutoff_hz: float, loads: np.ndarray, shift_hz: float = 0.5):
     """(V, omega, n_modes): free carbody modes below ``cutoff_hz`` and the pseudo-modes of
     the residual flexibility for ``loads`` (n_dof, n_loads), M-orthonormal, K-diagonal."""
     K, M = cb.stiffness(p).tocsc(), cb.M.tocsc()
@@ -129,7 +129,7 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
     e_full = sensor_operator(model, (exciter,))[0]
     S_full = sensor_operator(model, sensors)
     loads = np.column_stack([e_full[:n_cb]] + seats)
-    V, omega_c, n_modes = _carbody_basis(cb, p, cutoff_hz, loads)
+    V, omega_c, n_modes = carbody_basis(cb, p, cutoff_hz, loads)
     n_eta = V.shape[1]
     nq = n_eta + 6 * len(bodies)
     body_col = {b.name: n_eta + 6 * i for i, b in enumerate(bodies)}
