@@ -117,10 +117,9 @@ def _shaker(out: Path, say, progress) -> dict:
 def _fmus(out: Path, campaign, car_parameters, box_calibration: dict) -> dict:
     """Both FMUs with the campaign's first track recording, run stand-alone at 40 m/s."""
     import fmpy
-    import scipy.interpolate
 
     from fmu_src.export import export_fmu
-    from fmu_src.reference import car_reference, nrmse
+    from fmu_src.reference import car_reference, nrmse, spline_profile
 
     track = campaign.tracks()[0]
     speed, T, h = 40.0, 10.0, 1e-3
@@ -132,10 +131,8 @@ def _fmus(out: Path, campaign, car_parameters, box_calibration: dict) -> dict:
                             start_values={"speed": speed, "track_start": start}, output=outputs)
     from fmu_src.variables import car2d_spec
 
-    spline = scipy.interpolate.CubicSpline(track.distance, track.level, bc_type="natural")
     ref = car_reference(car2d_spec(car_parameters.as_dict()), car_parameters,
-                        lambda x: (spline(x), spline(x, 1), spline(x, 2), spline(x, 3)), speed, res["time"],
-                        start=start)
+                        spline_profile(track.distance, track.level), speed, res["time"], start=start)
     box = export_fmu(box_calibration, 2, out / "railcal_box.fmu", track=track.path)
     t = np.arange(0.0, 2.0 + h / 2, h)
     force = np.zeros(t.size, dtype=[("time", float), ("exciter_force", float)])

@@ -76,18 +76,24 @@ def smooth_profile(length: float, seed: int, *, dx: float = 0.25, min_wavelength
                    max_wavelength: float = 70.0) -> tuple[np.ndarray, np.ndarray, Profile]:
     """A synthetic vertical track profile (German low-disturbance PSD, ``min_wavelength``-
     ``max_wavelength`` band) on a grid, and its cubic-spline interpolant with derivatives."""
-    import scipy.interpolate
-
     from calibration.truth.track import german_vertical_psd, synthesise_profile
 
     s, z = synthesise_profile(german_vertical_psd, length, dx, np.random.default_rng(seed),
                               min_wavelength=min_wavelength, max_wavelength=max_wavelength)
-    spline = scipy.interpolate.CubicSpline(s, z, bc_type="natural")  # as the FMU interpolates a track file
+    return s, z, spline_profile(s, z)
+
+
+def spline_profile(distance, level) -> Profile:
+    """The track (distance, level) [m] as the FMUs and the exudyn references read a track file:
+    the natural cubic spline through its points, with its first three derivatives."""
+    import scipy.interpolate
+
+    spline = scipy.interpolate.CubicSpline(distance, level, bc_type="natural")
 
     def profile(x):
         return spline(x), spline(x, 1), spline(x, 2), spline(x, 3)
 
-    return s, z, profile
+    return profile
 
 
 def nrmse(y: np.ndarray, ref: np.ndarray) -> float:

@@ -13,11 +13,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import scipy.interpolate
 
 from calibration.models.car2d import wheelset_positions
 from calibration.models.parameters import CarParameters
-from fmu_src.reference import car_reference, nrmse
+from fmu_src.reference import car_reference, nrmse, spline_profile
 
 from .car2d import OUTPUTS, RailInput, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
 
@@ -71,11 +70,9 @@ def crosscheck_car(p: CarParameters, distance: np.ndarray, level: np.ndarray, *,
     t0 = time.perf_counter()
     res = simulate_car_exudyn(p, RailInput(distance, level, speed, start), duration=duration,
                               output_interval=OUTPUT_INTERVAL)
-    spline = scipy.interpolate.CubicSpline(distance, level, bc_type="natural")  # as the FMU and exudyn read it
     from fmu_src.variables import car2d_spec
 
-    ref = car_reference(car2d_spec(p.as_dict()), p, lambda x: (spline(x), spline(x, 1), spline(x, 2), spline(x, 3)),
-                        speed, res.t, start=start)
+    ref = car_reference(car2d_spec(p.as_dict()), p, spline_profile(distance, level), speed, res.t, start=start)
     wall = time.perf_counter() - t0
     fmu = None
     if with_fmu:
@@ -160,9 +157,8 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
     t0 = time.perf_counter()
     res = simulate_box_exudyn(model, p, duration=duration, rail=RailInput(distance, level, speed, start),
                               cutoff_hz=cutoff_hz, zeta=zeta)
-    spline = scipy.interpolate.CubicSpline(distance, level, bc_type="natural")
-    ref = box_reference(reduced, zeta, lambda x: (spline(x), spline(x, 1), spline(x, 2), spline(x, 3)), speed,
-                        res.t, np.zeros(res.t.size), start=start)
+    ref = box_reference(reduced, zeta, spline_profile(distance, level), speed, res.t, np.zeros(res.t.size),
+                        start=start)
     wall = time.perf_counter() - t0
     rows = {}
     fmu = None
