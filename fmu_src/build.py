@@ -24,6 +24,11 @@ from .variables import UNITS, ModelSpec
 
 HERE = Path(__file__).resolve().parent
 COMMON = ("instance.c", "linalg.c", "track.c")
+
+
+def c_sources(fmi_version: int) -> tuple[str, ...]:
+    """The C files an FMU of ``fmi_version`` is compiled from (all in its sources/)."""
+    return (f"fmi{fmi_version}.c",) + COMMON + ("model.c",)
 HEADERS = ("instance.h", "linalg.h", "model.h", "track.h")
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
@@ -93,8 +98,8 @@ def config_header(spec: ModelSpec, guid: str) -> str:
         f"static const char *const STRING_START[N_STRINGS > 0 ? N_STRINGS : 1] = "
         f"{{{', '.join(_c_string(v.start or '') for v in strings) or '0'}}};",
         f"static const int INPUT_VR[MODEL_NU] = {{{', '.join(f'VR_{v.name}' for v in inputs)}}};",
-        "static const int INPUT_SLOPE_VR[MODEL_NU] = {" + ", ".join(
-            next((f"VR_{w.name}" for w in inputs if w.input_rate_of == v.name), "-1") for v in inputs) + "};",
+        "static const int INPUT_RATE_INDEX[MODEL_NU] = {" + ", ".join(
+            str(next((k for k, w in enumerate(inputs) if w.input_rate_of == v.name), -1)) for v in inputs) + "};",
         "static const int INPUT_IS_RATE[MODEL_NU] = {" + ", ".join(
             "1" if v.input_rate_of else "0" for v in inputs) + "};",
         f"static const int OUTPUT_VR[MODEL_NY] = {{{', '.join(f'VR_{v.name}' for v in outputs)}}};", "",
@@ -125,7 +130,7 @@ def model_description(spec: ModelSpec, fmi_version: int, guid: str) -> str:
               'variableNamingConvention="flat"')
     experiment = (f'  <DefaultExperiment startTime="0" stopTime="{spec.default_stop!r}" '
                   f'stepSize="{spec.default_step!r}"/>')
-    sources = [f for f in (f"fmi{fmi_version}.c",) + COMMON + ("model.c",)]
+    sources = c_sources(fmi_version)
     if fmi_version == 2:
         head.append(f'<fmiModelDescription fmiVersion="2.0" guid="{guid}" {common} numberOfEventIndicators="0">')
         head += [f'  <CoSimulation modelIdentifier="{spec.identifier}" needsExecutionTool="false" '
@@ -200,7 +205,7 @@ def _fmi_value(v) -> str:
 
 
 def build_description(spec: ModelSpec) -> str:
-    files = ("fmi3.c",) + COMMON + ("model.c",)
+    files = c_sources(3)
     return "\n".join([
         '<?xml version="1.0" encoding="UTF-8"?>',
         '<fmiBuildDescription fmiVersion="3.0">',
@@ -224,7 +229,7 @@ def _compile(src: Path, fmi_version: int, platform: str, out: Path) -> None:
     if not shutil.which(cc):
         raise BuildError(f"compiler {cc} for {platform} not found (Debian: "
                          f"{'gcc' if platform == 'linux64' else 'gcc-mingw-w64-x86-64'})")
-    files = [str(src / f) for f in (f"fmi{fmi_version}.c",) + COMMON + ("model.c",)]
+    files = [str(src / f) for f in c_sources(fmi_version)]
     flags = list(CFLAGS)
     if platform == "linux64":
         flags += ["-fPIC", "-shared"]

@@ -187,13 +187,13 @@ static void inputs(Instance *inst, double *u, double *s, double *c) {
         else
             s[j] = 0.0;
     }
-    for (int j = 0; j < MODEL_NU; j++)
-        if (INPUT_SLOPE_VR[j] >= 0)
-            for (int k = 0; k < MODEL_NU; k++)
-                if (INPUT_VR[k] == INPUT_SLOPE_VR[j]) {
-                    s[j] = u[k];
-                    c[j] = s[k];
-                }
+    for (int j = 0; j < MODEL_NU; j++) {
+        const int k = INPUT_RATE_INDEX[j];
+        if (k >= 0) {
+            s[j] = u[k];
+            c[j] = s[k];
+        }
+    }
 }
 
 #if HAS_STANDALONE
@@ -436,7 +436,7 @@ int inst_set_input_derivatives(Instance *inst, const unsigned *vr, size_t n, con
         if (!isfinite(value[k]))
             return inst_error(inst, 0, "derivative of %s = %g is not finite", REAL_NAME[vr[k]], value[k]);
         if (order[k] > 2) continue; /* the step is exact for inputs quadratic over it */
-        if (INPUT_SLOPE_VR[j] >= 0) continue; /* a level's derivatives are its rate input's */
+        if (INPUT_RATE_INDEX[j] >= 0) continue; /* a level's derivatives are its rate input's */
         inst->s.outputs_stale = 1;
         if (order[k] == 1) {
             inst->s.du[j] = value[k];

@@ -13,7 +13,7 @@
  * (fmu_src/variables.py): value references, start values, causalities and the tables
  * below. It defines MODEL_NX, MODEL_NU, MODEL_NY, N_REALS, N_BOOLS, N_STRINGS and:
  *   INPUT_VR[MODEL_NU]      value reference of each input u_i
- *   INPUT_SLOPE_VR[MODEL_NU] value reference whose value is u_i's slope, or -1
+ *   INPUT_RATE_INDEX[MODEL_NU] index k of the input u_k that is u_i's rate, or -1
  *   INPUT_IS_RATE[MODEL_NU] 1 for an input that is the time derivative of another
  *                           (zero in the static equilibrium the FMU starts in)
  *   OUTPUT_VR[MODEL_NY]     value reference of each output y_i
