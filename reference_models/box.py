@@ -71,7 +71,7 @@ from calibration.models.box.assembly import BoxModel, _local_operator, assemble
 from calibration.models.box.reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
-from reference_models.car2d import RailInput, _rail_functions
+from reference_models.car2d import RailInput, rail_functions
 
 RIGID_HZ = 0.05  # [Hz] carbody modes below this are rigid-body motions (no structural damping)
 RAIL_MASS = 1.0  # [kg] of each prescribed rail point (its motion is given: the value only scales a reaction)
@@ -349,7 +349,7 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
             mbs.SetNodeParameter(node, "initialVelocities", [float(dz)])
         mbs.Assemble()  # symbolic user functions go in after assembly (exudyn's recipe)
         for con, x in zip(rail_constraints, wheelset_x):
-            level, rate = _rail_functions(rail, float(x))
+            level, rate = rail_functions(rail, float(x))
             uf = CreateSymbolicUserFunction(mbs, level, "offsetUserFunction", con)
             uf_t = CreateSymbolicUserFunction(mbs, rate, "offsetUserFunction_t", con)
             mbs.SetObjectParameter(con, "offsetUserFunction", uf)

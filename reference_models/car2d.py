@@ -132,7 +132,7 @@ def _piecewise_tree(x, breaks: np.ndarray, coefs: np.ndarray, lo: int, hi: int):
                                    _piecewise_tree(x, breaks, coefs, mid, hi))
 
 
-def _rail_functions(rail: RailInput, x_wheelset: float):
+def rail_functions(rail: RailInput, x_wheelset: float):
     """Python offset functions (level [m], rate [m/s] vs time) of a wheelset at vehicle-frame
     ``x_wheelset``, written in exudyn symbolic arithmetic so they convert to C++ expressions."""
     spline = rail.spline()
@@ -240,7 +240,7 @@ def build_car_exudyn(p: CarParameters, *, rail: RailInput | None = None) -> tupl
     mbs.Assemble()  # symbolic user functions go in after assembly (exudyn's recipe)
     if rail is not None:
         for j, con in enumerate(rail_constraints):
-            level, rate = _rail_functions(rail, xw[j])
+            level, rate = rail_functions(rail, xw[j])
             uf = CreateSymbolicUserFunction(mbs, level, "offsetUserFunction", con)
             uf_t = CreateSymbolicUserFunction(mbs, rate, "offsetUserFunction_t", con)
             mbs.SetObjectParameter(con, "offsetUserFunction", uf)
