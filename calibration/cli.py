@@ -65,7 +65,8 @@ def cmd_synth_in_service(args) -> int:
         raise InputError(f"--journeys must be >= 1, got {args.journeys}", key="--journeys")
     if not 5.0 <= args.length_km <= 500.0:
         raise InputError(f"--length-km must be within 5..500 km, got {args.length_km}", key="--length-km")
-    settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0))
+    settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
+                                 carbody_sensors=args.carbody_sensors)
     truth = synth_in_service(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
                              overwrite=args.force, progress=_progress(args))
     f = truth["frequencies_hz"]
@@ -430,6 +431,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = synth_parser("in-service", "in-service journeys (bogie and axle-box sensors)", cmd_synth_in_service)
     s.add_argument("--journeys", type=int, default=10)
     s.add_argument("--length-km", type=float, default=40.0, help="length of the line [km]")
+    s.add_argument("--carbody-sensors", action="store_true",
+                   help="add floor accelerometers above both bogies and at the car centre")
     s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")

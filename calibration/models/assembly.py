@@ -15,14 +15,49 @@ moves ``z - x * theta``.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 
 @dataclass(frozen=True)
+class ElasticMode:
+    """A free-free elastic mode of a body, one more generalised coordinate ``q``.
+
+    A point of the body at vehicle-frame ``x`` moves ``shape(x - body.x) * q`` on top of
+    the rigid motion. ``modal_mass`` [kg] is the mode's generalised mass for that shape
+    scaling, ``frequency`` [Hz] its natural frequency on free supports, ``damping_ratio``
+    its modal damping. The shape must be orthogonal to the rigid motions (a free-free mode
+    is), so the mass matrix stays diagonal.
+    """
+
+    name: str
+    shape: Callable[[float], float]
+    modal_mass: float
+    frequency: float
+    damping_ratio: float = 0.0
+
+
+def beam_bending_shape(length: float) -> Callable[[float], float]:
+    """First free-free bending shape of a uniform beam of ``length`` [m], centred on 0 and
+    scaled to 1 at its ends (beta L = 4.7300). Its generalised mass for that scaling is a
+    quarter of the beam's mass; it is orthogonal to bounce and pitch."""
+    bl = 4.730040744862704
+    s = (np.cosh(bl) - np.cos(bl)) / (np.sinh(bl) - np.sin(bl))
+
+    def raw(u):
+        b = bl * (u / length + 0.5)
+        return np.cosh(b) + np.cos(b) - s * (np.sinh(b) + np.sin(b))
+
+    end = raw(length / 2)
+    return lambda x: float(raw(x) / end)
+
+
+@dataclass(frozen=True)
 class Body:
-    """A rigid body moving vertically (and pitching when ``inertia`` is given).
+    """A rigid body moving vertically (and pitching when ``inertia`` is given), optionally
+    with free-free elastic modes (``modes``).
 
     Attributes
     ----------
@@ -37,10 +72,12 @@ class Body:
     mass: float
     x: float
     inertia: float | None = None
+    modes: tuple[ElasticMode, ...] = ()
 
     @property
     def dof_names(self) -> tuple[str, ...]:
-        return (f"{self.name}_z",) if self.inertia is None else (f"{self.name}_z", f"{self.name}_pitch")
+        rigid = (f"{self.name}_z",) if self.inertia is None else (f"{self.name}_z", f"{self.name}_pitch")
+        return rigid + tuple(f"{self.name}_{m.name}" for m in self.modes)
 
 
 @dataclass(frozen=True)
@@ -106,6 +143,8 @@ def _point_rows(bodies, dofs, att: Attachment, inputs=()):
         g[dofs.index(f"{body.name}_pitch")] = -(att.x - body.x)
     elif att.x != body.x:
         raise ValueError(f"point mass {body.name} cannot carry an attachment off its centre")
+    for mode in body.modes:
+        g[dofs.index(f"{body.name}_{mode.name}")] = mode.shape(att.x - body.x)
     return g, h
 
 
@@ -124,6 +163,13 @@ def assemble(bodies: list[Body], elements: list[SpringDamper], inputs: list[str]
             M[i, i] = b.inertia
     K = np.zeros((n, n))
     C = np.zeros((n, n))
+    for b in bodies:
+        for mode in b.modes:
+            i = dofs.index(f"{b.name}_{mode.name}")
+            w = 2 * np.pi * mode.frequency
+            M[i, i] = mode.modal_mass
+            K[i, i] = mode.modal_mass * w * w
+            C[i, i] = 2 * mode.damping_ratio * mode.modal_mass * w
     B_k = np.zeros((n, m))
     B_c = np.zeros((n, m))
     for e in elements:

@@ -7,6 +7,11 @@ Built from :mod:`calibration.models.assembly` bodies and spring-dampers. Two var
 * ``wheelsets="free"`` (10 DOF): wheelsets are point masses on a vertical contact /
   track spring ``k_contact`` (and damper ``c_contact``) to the rail input.
 
+:class:`CarExtras` adds the physics the seed's car leaves out (issue 7): a carbody centre
+of mass off its geometric centre, the carbody's first vertical bending mode, air springs
+with a reservoir branch, wheelsets on a flexible track. The truth simulator uses them to
+hide effects and the diagnosis to extend the model; zero / None leaves the seed's car.
+
 Wheelset 1 leads: bogie 1 sits at x = +L_v, wheelset 1 at x = L_v + L_b.
 """
 from __future__ import annotations
@@ -16,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .assembly import Assembly, Attachment, Body, SpringDamper, assemble
+from .assembly import Assembly, Attachment, Body, ElasticMode, SpringDamper, assemble, beam_bending_shape
 from .parameters import CarParameters
 
 RAIL_INPUTS = ("z_rail_1", "z_rail_2", "z_rail_3", "z_rail_4")
@@ -32,26 +37,77 @@ def bogie_positions(p: CarParameters) -> np.ndarray:
     return np.array([p.L_v, -p.L_v])
 
 
+@dataclass(frozen=True)
+class CarExtras:
+    """Physical additions to the seed's 2D car (SI units; the defaults add nothing).
+
+    cog_offset : [m] carbody centre of mass ahead (+) of its geometric centre (J_v stays
+        about the centre of mass).
+    bending_hz : [Hz] first vertical bending of the carbody (free-free uniform beam shape of
+        ``carbody_length``, scaled to 1 at the ends, generalised mass ``bending_mass_ratio``
+        x m_v, damping ratio ``bending_damping``); None: a rigid carbody.
+    reservoir_ratio : each air spring gets a reservoir branch in parallel with k_s: a
+        stiffness ``reservoir_ratio`` x k_s in series with an orifice damper whose corner
+        frequency k_r / (2 pi c_o) is ``reservoir_corner_hz``. The node between them carries
+        ``node_mass`` (a massless node would make the mass matrix singular; 1 kg puts the
+        node's own pole near -c_o / 1 kg, far above any band of interest).
+    track_stiffness : [N/m] per wheelset: wheelsets are free bodies on the track (rail pads,
+        sleepers, ballast) of this stiffness, damping ratio ``track_damping_ratio`` with the
+        wheelset plus ``track_mass`` [kg] of rail and sleepers moving with it; the rail
+        input is then the support's level. None: wheelsets on a rigid rail.
+    """
+
+    cog_offset: float = 0.0
+    bending_hz: float | None = None
+    bending_damping: float = 0.02
+    bending_mass_ratio: float = 0.25
+    carbody_length: float = 23.0
+    reservoir_ratio: float = 0.0
+    reservoir_corner_hz: float = 2.5
+    node_mass: float = 1.0
+    track_stiffness: float | None = None
+    track_damping_ratio: float = 0.2
+    track_mass: float = 250.0
+
+
 def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
-              c_contact: float = 0.0) -> Assembly:
-    """Assemble the 2D car from rigid bodies and spring-dampers."""
+              c_contact: float = 0.0, extras: CarExtras | None = None) -> Assembly:
+    """Assemble the 2D car from rigid bodies and spring-dampers (plus ``extras``)."""
     if wheelsets not in ("rail", "free"):
         raise ValueError(f"wheelsets must be 'rail' or 'free', not {wheelsets!r}")
+    ex = CarExtras() if extras is None else extras
+    m_wheelset = p.m_w
+    if ex.track_stiffness is not None:
+        wheelsets, m_wheelset, k_contact = "free", p.m_w + ex.track_mass, ex.track_stiffness
+        c_contact = 2 * ex.track_damping_ratio * np.sqrt(k_contact * m_wheelset)
     xb = bogie_positions(p)
     xw = wheelset_positions(p)
-    bodies = [Body("carbody", p.m_v, 0.0, p.J_v)]
+    modes = ()
+    if ex.bending_hz is not None:
+        modes = (ElasticMode("bending", beam_bending_shape(ex.carbody_length), ex.bending_mass_ratio * p.m_v,
+                             ex.bending_hz, ex.bending_damping),)
+    bodies = [Body("carbody", p.m_v, ex.cog_offset, p.J_v, modes)]
     bodies += [Body(f"bogie{i + 1}", p.m_b, xb[i], p.J_b) for i in range(2)]
     elements = [
         SpringDamper(f"secondary{i + 1}", Attachment("carbody", xb[i]), Attachment(f"bogie{i + 1}", xb[i]),
                      p.k_s, p.c_s)
         for i in range(2)
     ]
+    if ex.reservoir_ratio > 0:
+        k_r = ex.reservoir_ratio * p.k_s
+        c_o = k_r / (2 * np.pi * ex.reservoir_corner_hz)
+        for i in range(2):
+            node = f"reservoir{i + 1}"
+            bodies.append(Body(node, ex.node_mass, xb[i]))
+            elements.append(SpringDamper(f"{node}_spring", Attachment("carbody", xb[i]), Attachment(node, xb[i]), k_r))
+            elements.append(SpringDamper(f"{node}_orifice", Attachment(node, xb[i]), Attachment(f"bogie{i + 1}", xb[i]),
+                                         0.0, c_o))
     for j in range(4):
         bogie = f"bogie{1 + j // 2}"
         if wheelsets == "rail":
             below = Attachment(input=RAIL_INPUTS[j])
         else:
-            bodies.append(Body(f"wheelset{j + 1}", p.m_w, xw[j]))
+            bodies.append(Body(f"wheelset{j + 1}", m_wheelset, xw[j]))
             below = Attachment(f"wheelset{j + 1}", xw[j])
             elements.append(SpringDamper(f"contact{j + 1}", below, Attachment(input=RAIL_INPUTS[j]),
                                          k_contact, c_contact))
@@ -63,6 +119,7 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
 _GROUPS = {
     "carbody_bounce": ("carbody_z",),
     "carbody_pitch": ("carbody_pitch",),
+    "carbody_bending": ("carbody_bending",),
     "bogie_bounce": ("bogie1_z", "bogie2_z"),
     "bogie_pitch": ("bogie1_pitch", "bogie2_pitch"),
     "axle_bounce": ("wheelset1_z", "wheelset2_z", "wheelset3_z", "wheelset4_z"),
@@ -195,6 +252,25 @@ def state_space(asm: Assembly, outputs: list[Output]) -> StateSpace:
             raise ValueError(f"unknown output kind {o.kind!r} for {o.name}")
     inputs = tuple(asm.inputs) + tuple(f"d{u}" for u in asm.inputs)
     return StateSpace(A, B, C, D, tuple(o.name for o in outputs), inputs)
+
+
+def frequency_response(asm: Assembly, outputs: list[Output], frequency: np.ndarray) -> np.ndarray:
+    """Complex response of ``outputs`` to unit harmonic rail levels, (n_freq, n_out, n_input):
+    y(w) = H(w) u(w) with u the inputs' levels (their rates i w u included)."""
+    w = 2 * np.pi * np.asarray(frequency, float)
+    n = len(asm.dofs)
+    D = asm.K[None] - (w * w)[:, None, None] * asm.M[None] + 1j * w[:, None, None] * asm.C[None]
+    F = asm.B_k[None] + 1j * w[:, None, None] * asm.B_c[None]
+    Hq = np.linalg.solve(D, F)  # (n_f, n_dof, n_in)
+    rows = np.zeros((len(outputs), n))
+    power = np.zeros(len(outputs))
+    for r, o in enumerate(outputs):
+        if o.kind in ("pitch_angle", "pitch_rate"):
+            rows[r, asm.dof(f"{o.body}_pitch")] = 1.0
+        else:
+            rows[r] = asm.point_row(o.body, o.x)
+        power[r] = {"displacement": 0, "pitch_angle": 0, "velocity": 1, "pitch_rate": 1, "acceleration": 2}[o.kind]
+    return (1j * w[:, None, None]) ** power[None, :, None] * np.einsum("rn,fni->fri", rows, Hq)
 
 
 def static_deflection(asm: Assembly, gravity: float = GRAVITY) -> np.ndarray:

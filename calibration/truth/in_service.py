@@ -15,8 +15,16 @@ sensors on the leading bogie:
 * distance from 5 Hz GPS fixes (slowly wandering error plus jitter), linearly
   interpolated to the logger's rate, and speed from GPS Doppler.
 
+With ``carbody_sensors`` the carbody carries three floor accelerometers (above each bogie
+centre and at the car centre, the EN 12299 ride-comfort positions), in g.
+
 Logger drop-outs leave gaps (rows missing) and short NaN bursts. Everything random comes
 from one seeded ``numpy.random.Generator``.
+
+A hidden effect (:mod:`calibration.truth.effects`) changes the car (:class:`TruthCar`):
+its assembly (:class:`calibration.models.car2d.CarExtras`), where the bogie sensors
+really sit, or a wheelset's roundness. The effect's details are drawn from a second
+generator seeded by ``[seed, 7]``, so the effect-free campaign of a seed is unchanged.
 """
 from __future__ import annotations
 
@@ -28,7 +36,8 @@ import scipy.signal
 
 from ..data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor, write_json_atomic
 from ..data.units import STANDARD_GRAVITY
-from ..models.car2d import (Output, build_car, damped_modes, frequencies_by_label, state_space,
+from ..models.assembly import Assembly
+from ..models.car2d import (CarExtras, Output, build_car, damped_modes, frequencies_by_label, state_space,
                             undamped_modes, wheelset_positions)
 from ..models.parameters import CarParameters
 from ..models.simulate import ModalSimulator
@@ -65,6 +74,8 @@ class InServiceSettings:
     recording_noise: float = 0.05e-3  # [m] rms of the track recording car's level
     gap_probability: float = 0.5  # per journey: a logger drop-out of 1-4 s
     nan_probability: float = 0.3  # per journey: a 0.2 s NaN burst in one channel
+    carbody_sensors: bool = False  # floor accelerometers above the bogies and at the centre
+    carbody_acc_noise: float = 0.02  # [m/s^2] rms
     chunk: int = 1 << 17
 
     def __post_init__(self):
@@ -92,7 +103,81 @@ def default_sensors(p: CarParameters, settings: InServiceSettings) -> tuple[Sens
     sensors.append(Sensor("bogie1_acc_z", "acceleration", "g", "bogie1", "z", (xs, 0.6, SENSOR_HEIGHT)))
     sensors.append(Sensor("bogie1_gyro_pitch", "angular_velocity", "deg/s", "bogie1", "pitch",
                           (xs, 0.6, SENSOR_HEIGHT), settings.gyro_scale))
+    if settings.carbody_sensors:
+        for where, x in (("front", p.L_v), ("centre", 0.0), ("rear", -p.L_v)):
+            sensors.append(Sensor(f"carbody_{where}_acc_z", "acceleration", "g", "carbody", "z",
+                                  (x, 0.0, CARBODY_FLOOR_HEIGHT)))
     return tuple(sensors)
+
+
+# ------------------------------------------------------------------ the car measured
+WHEEL_RADIUS = 0.42  # [m] nominal running radius of the truth car's wheels (0.84 m wheels)
+CARBODY_FLOOR_HEIGHT = 1.2  # [m] above rail
+
+
+@dataclass(frozen=True)
+class TruthCar:
+    """The car a campaign is measured on: the assembly, where each sensor really sits
+    (vehicle-frame x; the declared position is campaign.toml's), and an out-of-round wheel
+    (``oor``: wheelset index 0-3, polygon order, radius amplitude [m], phase [rad]) or None."""
+
+    parameters: CarParameters
+    assembly: Assembly
+    sensor_x: dict
+    oor: tuple | None = None
+    details: dict = field(default_factory=dict)
+
+    def wheel_deviation(self, j: int, s: np.ndarray):
+        """Radius deviation of wheelset j at distance s and its first two s-derivatives."""
+        if self.oor is None or self.oor[0] != j:
+            z = np.zeros_like(s)
+            return z, z, z
+        _, order, amp, phase = self.oor
+        k = order / WHEEL_RADIUS
+        arg = k * s + phase
+        return amp * np.cos(arg), -amp * k * np.sin(arg), -amp * k * k * np.cos(arg)
+
+
+def truth_car(p: CarParameters, sensors: tuple[Sensor, ...], effect: EffectChoice | None,
+              rng: np.random.Generator) -> TruthCar:
+    """Apply ``effect`` (drawing its undetermined details from ``rng``) to the car ``p``."""
+    sensor_x = {x.name: float(x.position[0]) for x in sensors}
+    name = None if effect is None else effect.spec.name
+    mag = None if effect is None else effect.magnitude
+    extras, oor, details = CarExtras(), None, {}
+    if name == "carbody_bending":
+        zeta = float(rng.uniform(0.015, 0.03))
+        extras = CarExtras(bending_hz=mag, bending_damping=zeta)
+        details = {"bending_hz": mag, "damping_ratio": zeta, "modal_mass_ratio": extras.bending_mass_ratio}
+    elif name == "cog_offset":
+        sign = float(rng.choice([-1.0, 1.0]))
+        extras = CarExtras(cog_offset=sign * mag)
+        details = {"cog_x_m": sign * mag}
+    elif name == "airspring_reservoir":
+        corner = float(rng.uniform(1.5, 4.0))
+        extras = CarExtras(reservoir_ratio=mag, reservoir_corner_hz=corner)
+        details = {"reservoir_stiffness_n_per_m": mag * p.k_s, "corner_hz": corner,
+                   "orifice_damping_n_s_per_m": mag * p.k_s / (2 * np.pi * corner)}
+    elif name == "track_flexibility":
+        extras = CarExtras(track_stiffness=mag)
+        m = p.m_w + extras.track_mass
+        details = {"track_stiffness_n_per_m": mag, "track_mass_kg": extras.track_mass,
+                   "damping_ratio": extras.track_damping_ratio,
+                   "resonance_hz": float(np.sqrt(mag / m) / (2 * np.pi))}
+    elif name == "sensor_offset":
+        sign = float(rng.choice([-1.0, 1.0]))
+        for x in sensors:
+            if x.body == "bogie1":
+                sensor_x[x.name] += sign * mag
+        details = {"x_error_m": sign * mag, "sensors": [x.name for x in sensors if x.body == "bogie1"]}
+    elif name == "wheel_out_of_round":
+        j, order, phase = int(rng.integers(0, 2)), int(rng.integers(1, 4)), float(rng.uniform(0, 2 * np.pi))
+        oor = (j, order, mag, phase)
+        details = {"wheelset": j + 1, "order": order, "radius_amplitude_m": mag,
+                   "wavelength_m": float(2 * np.pi * WHEEL_RADIUS / order)}
+    elif name is not None:
+        raise NotImplementedError(f"effect {name} is not simulated in in-service campaigns")
+    return TruthCar(p, build_car(p, extras=extras), sensor_x, oor, details)
 
 
 def draw_truth_parameters(settings: InServiceSettings, rng: np.random.Generator) -> CarParameters:
@@ -147,10 +232,11 @@ class JourneyTruth:
     gyro_offset_raw: float
 
 
-def simulate_journey(run_id: str, line: Line, p: CarParameters, sensors: tuple[Sensor, ...],
+def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sensor, ...],
                      settings: InServiceSettings, rng: np.random.Generator) -> tuple[dict, JourneyTruth]:
     """One journey over the whole line: returns raw columns (sensor units) and its truth."""
     fs = settings.fs
+    p = car.parameters
     xw = wheelset_positions(p)
     s_start = max(0.0, float(xw.max()) - line.s_min + 1.0) if line.s_min > -1 else 0.0
     s_end = line.spec.length
@@ -164,12 +250,16 @@ def simulate_journey(run_id: str, line: Line, p: CarParameters, sensors: tuple[S
     dvds = np.interp(s, s_grid, np.gradient(v_grid, s_grid))
     acc_train = v * dvds
 
-    bogie = next(x for x in sensors if x.name == "bogie1_acc_z")
-    outputs = [Output("bogie1_acc_z", "acceleration", "bogie1", bogie.position[0]),
+    flexible = any(b.name.startswith("wheelset") for b in car.assembly.bodies)
+    outputs = [Output("bogie1_acc_z", "acceleration", "bogie1", car.sensor_x["bogie1_acc_z"]),
                Output("bogie1_pitch_rate", "pitch_rate", "bogie1")]
-    sim = ModalSimulator(state_space(build_car(p), outputs), 1.0 / fs, x0="static")
-    bogie_acc = np.empty(n)
-    pitch_rate = np.empty(n)
+    outputs += [Output(x.name, "acceleration", "carbody", car.sensor_x[x.name]) for x in sensors
+                if x.body == "carbody"]
+    if flexible:
+        outputs += [Output(f"wheelset{j + 1}", "acceleration", f"wheelset{j + 1}", float(xw[j])) for j in range(4)]
+    index = {o.name: k for k, o in enumerate(outputs)}
+    sim = ModalSimulator(state_space(car.assembly, outputs), 1.0 / fs, x0="static")
+    y_all = np.empty((n, len(outputs)))
     axle = {x.name: np.empty(n) for x in sensors if x.body.startswith("axle")}
     for a in range(0, n, settings.chunk):
         b = min(n, a + settings.chunk)
@@ -177,16 +267,25 @@ def simulate_journey(run_id: str, line: Line, p: CarParameters, sensors: tuple[S
         w = np.empty((b - a, 8))
         for j in range(4):
             z, dz, _ = line.level(sc + xw[j])
-            w[:, j] = z
-            w[:, 4 + j] = vc * dz
+            r, dr, _ = car.wheel_deviation(j, sc)
+            w[:, j] = z + r
+            w[:, 4 + j] = vc * (dz + dr)
         y = sim.step_chunk(w)
-        bogie_acc[a:b] = y[:, 0]
-        pitch_rate[a:b] = y[:, 1]
+        y_all[a:b] = y
         for x in sensors:
             if x.body.startswith("axle"):
+                j = int(x.body[4:]) - 1
                 side = 1 if "left" in x.name else -1
-                _, dz, d2z = line.level(sc + x.position[0], side=side)
-                axle[x.name][a:b] = vc * vc * d2z + ac * dz
+                if flexible:  # the wheelset's own motion, plus the rails' cross level (rigid in roll)
+                    _, dz0, d2z0 = line.level(sc + x.position[0])
+                    _, dz1, d2z1 = line.level(sc + x.position[0], side=side)
+                    axle[x.name][a:b] = y[:, index[f"wheelset{j + 1}"]] + vc * vc * (d2z1 - d2z0) + ac * (dz1 - dz0)
+                else:
+                    _, dz, d2z = line.level(sc + x.position[0], side=side)
+                    _, dr, d2r = car.wheel_deviation(j, sc)
+                    axle[x.name][a:b] = vc * vc * (d2z + d2r) + ac * (dz + dr)
+    bogie_acc = y_all[:, index["bogie1_acc_z"]]
+    pitch_rate = y_all[:, index["bogie1_pitch_rate"]]
 
     g = STANDARD_GRAVITY
     cols: dict[str, np.ndarray] = {"time": t}
@@ -201,6 +300,9 @@ def simulate_journey(run_id: str, line: Line, p: CarParameters, sensors: tuple[S
         if x.body.startswith("axle"):
             cols[x.name] = (axle[x.name] + rng.normal(0, settings.axle_acc_noise, n)) / g + 1.0
     cols["bogie1_acc_z"] = (bogie_acc + rng.normal(0, settings.bogie_acc_noise, n)) / g + 1.0
+    for x in sensors:
+        if x.body == "carbody":
+            cols[x.name] = (y_all[:, index[x.name]] + rng.normal(0, settings.carbody_acc_noise, n)) / g + 1.0
     offset = rng.uniform(-settings.gyro_offset_raw, settings.gyro_offset_raw)
     drift = _ou(n, 1 / fs, 600.0, settings.gyro_drift_raw, rng)
     tone = settings.gyro_tone_raw * np.sin(2 * np.pi * settings.gyro_tone_hz * t + rng.uniform(0, 2 * np.pi))
@@ -250,13 +352,12 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
                      effect: EffectChoice | None = None, fmt: str = "csv", overwrite: bool = False,
                      progress=None) -> dict:
     """Write a synthetic in-service campaign to ``out`` and its truth to ``out.truth.json``."""
-    if effect is not None:
-        raise NotImplementedError(f"effect {effect.spec.name} is registered but not simulated")
     out = Path(out)
     rng = np.random.default_rng(seed)
     p = draw_truth_parameters(settings, rng)
     line = Line(settings.line, rng)
     sensors = default_sensors(settings.vehicle, settings)
+    car = truth_car(p, sensors, effect, np.random.default_rng([seed, 7]))
     meta = CampaignMeta(
         kind="in_service", name=f"synthetic in-service campaign (seed {seed})",
         vehicle="intercity trailer car (railcal truth simulator)", sensors=sensors, sampling_rate=settings.fs,
@@ -267,7 +368,7 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
     with CampaignWriter(out, meta, fmt=fmt, overwrite=overwrite) as w:
         for k in range(settings.journeys):
             run_id = f"journey_{k + 1:03d}"
-            cols, jt = simulate_journey(run_id, line, p, sensors, settings, rng)
+            cols, jt = simulate_journey(run_id, line, car, sensors, settings, rng)
             w.write_run(run_id, cols)
             journeys.append(jt.__dict__)
             if progress:
@@ -281,11 +382,11 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
     truth = {
         "format": TRUTH_FORMAT, "kind": "in_service", "seed": seed, "campaign": out.name,
         "parameters": p.as_dict(), **modal_truth(p),
-        "effect": None if effect is None else effect.to_json(),
+        "effect": None if effect is None else {**effect.to_json(), "details": car.details},
         "sensors": {"bogie1_gyro_pitch": {"scale_true": settings.gyro_scale, "scale_declared": settings.gyro_scale,
                                           "tone_hz": settings.gyro_tone_hz},
                     "bogie1_acc_z": {"x_offset_from_bogie_m": settings.sensor_offset}},
-        "noise_rms_si": {"bogie1_acc_z": settings.bogie_acc_noise,
+        "noise_rms_si": {"bogie1_acc_z": settings.bogie_acc_noise, "carbody": settings.carbody_acc_noise,
                          "bogie1_gyro_pitch": float(np.radians(settings.gyro_noise_raw) * settings.gyro_scale),
                          "axle_boxes": settings.axle_acc_noise, "white_up_to_hz": settings.fs / 2,
                          "track_recording_m": settings.recording_noise},

@@ -1,0 +1,143 @@
+"""Track flexibility from the axle boxes' spectra at different speeds.
+
+On a rigid rail a wheelset follows the rail's level, so its vertical acceleration PSD at
+speed v is
+
+    P(f; v) = (2 pi f)^4 S(kappa) / v,   kappa = f / v,
+
+with S the level's wavenumber spectrum: the spectra of all speeds *collapse* onto one
+S(kappa). A wheelset on a flexible track (rail pads, sleepers, ballast: the level being the
+support's geometry) moves with the transmissibility of its mass on the track spring,
+
+    |T(f)|^2 = (1 + (2 zeta r)^2) / ((1 - r^2)^2 + (2 zeta r)^2),   r = f / f_t,
+
+fixed in frequency, so the collapse fails in a way that moves through the wavenumber
+spectrum with speed. The model here fits log S(kappa) as a piecewise-linear function of
+log kappa (knots every ``knot_decades``) by weighted linear least squares, with T = 1
+(baseline) or with (f_t, zeta) searched on a grid and refined; the error is the mean
+squared log10 misfit. Both axle-box means are fitted with one S (they run over the same
+rail). Lines fixed in wavenumber (sleepers, welds) collapse either way.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+
+from .records import Statistics
+
+CHANNELS = ("axle1_mean", "axle2_mean")
+
+
+@dataclass(frozen=True)
+class TrackSettings:
+    knot_decades: float = 0.08
+    f_t_range: tuple[float, float] = (8.0, 100.0)  # [Hz]
+    zeta_range: tuple[float, float] = (0.03, 0.6)
+    band: tuple[float, float] = (2.0, 60.0)  # [Hz]: below, the axle boxes' SNR is poor
+
+
+def transmissibility2(f: np.ndarray, f_t: float, zeta: float) -> np.ndarray:
+    r = f / f_t
+    return (1 + (2 * zeta * r) ** 2) / ((1 - r * r) ** 2 + (2 * zeta * r) ** 2)
+
+
+@dataclass
+class _Data:
+    y: np.ndarray  # log10 of (P v / (2 pi f)^4)
+    w: np.ndarray
+    logk: np.ndarray
+    f: np.ndarray
+    channel: np.ndarray  # 0 / 1
+
+
+def _collect(stats: Statistics, keys, settings: TrackSettings) -> _Data:
+    f = stats.centres
+    bw = np.diff(stats.edges)
+    sel = (f >= settings.band[0]) & (f <= settings.band[1])
+    ys, ws, ks, fs, cs = [], [], [], [], []
+    for key in keys:
+        v = key[1] + 0.5 * _bin_width(stats)
+        for c, name in enumerate(CHANNELS):
+            i = stats.channels.index(name)
+            P = stats.S[key][:, i, i].real / stats.seconds[key] / bw
+            ok = sel & (P > 0)
+            ys.append(np.log10(P[ok] * v / (2 * np.pi * f[ok]) ** 4))
+            ws.append(np.full(ok.sum(), stats.seconds[key]))
+            ks.append(np.log10(f[ok] / v))
+            fs.append(f[ok])
+            cs.append(np.full(ok.sum(), c))
+    return _Data(*(np.concatenate(a) for a in (ys, ws, ks, fs, cs)))
+
+
+def _bin_width(stats: Statistics) -> float:
+    bins = stats.speed_bins
+    return float(np.min(np.diff(bins))) if len(bins) > 1 else 2.5
+
+
+def _basis(logk: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    x = np.clip(logk, knots[0], knots[-1])
+    B = np.zeros((x.size, knots.size))
+    i = np.clip(np.searchsorted(knots, x) - 1, 0, knots.size - 2)
+    t = (x - knots[i]) / (knots[i + 1] - knots[i])
+    B[np.arange(x.size), i] = 1 - t
+    B[np.arange(x.size), i + 1] = t
+    return B
+
+
+@dataclass(frozen=True)
+class TrackFit:
+    f_t: float | None  # [Hz]; None: rigid (baseline)
+    zeta: float | None
+    knots: np.ndarray
+    coef: np.ndarray
+    error_train: float
+
+    def to_json(self) -> dict:
+        return {"track_resonance_hz": self.f_t, "damping_ratio": self.zeta}
+
+
+def _solve(d: _Data, knots, f_t, zeta):
+    y = d.y if f_t is None else d.y - np.log10(transmissibility2(d.f, f_t, zeta))
+    B = _basis(d.logk, knots)
+    sw = np.sqrt(d.w)
+    coef, *_ = np.linalg.lstsq(B * sw[:, None], y * sw, rcond=None)
+    r = B @ coef - y
+    return coef, float(np.sum(d.w * r * r) / np.sum(d.w))
+
+
+def fit_track(stats: Statistics, train_keys, flexible: bool, settings: TrackSettings = TrackSettings()) -> TrackFit:
+    d = _collect(stats, train_keys, settings)
+    knots = np.arange(d.logk.min(), d.logk.max() + settings.knot_decades, settings.knot_decades)
+    if not flexible:
+        coef, err = _solve(d, knots, None, None)
+        return TrackFit(None, None, knots, coef, err)
+    lf = np.log(settings.f_t_range)
+    lz = np.log(settings.zeta_range)
+    best = None
+    for a in np.linspace(lf[0], lf[1], 40):
+        for b in np.linspace(lz[0], lz[1], 8):
+            _, err = _solve(d, knots, np.exp(a), np.exp(b))
+            if best is None or err < best[0]:
+                best = (err, a, b)
+    sol = scipy.optimize.minimize(lambda x: _solve(d, knots, np.exp(x[0]), np.exp(x[1]))[1], best[1:],
+                                  method="L-BFGS-B", bounds=[tuple(lf), tuple(lz)])
+    f_t, zeta = float(np.exp(sol.x[0])), float(np.exp(sol.x[1]))
+    coef, err = _solve(d, knots, f_t, zeta)
+    return TrackFit(f_t, zeta, knots, coef, err)
+
+
+def track_error(stats: Statistics, keys, fit: TrackFit, settings: TrackSettings = TrackSettings()) -> np.ndarray:
+    """Mean squared log10 misfit per axle-box channel over ``keys`` with S from ``fit``
+    (re-levelled: a constant offset of log S per channel is refitted, since the held-out
+    runs' rail is the same line but its level spectrum is estimated, not known)."""
+    d = _collect(stats, keys, settings)
+    y = d.y if fit.f_t is None else d.y - np.log10(transmissibility2(d.f, fit.f_t, fit.zeta))
+    r = _basis(d.logk, fit.knots) @ fit.coef - y
+    out = []
+    for c in range(len(CHANNELS)):
+        m = d.channel == c
+        rc = r[m] - np.average(r[m], weights=d.w[m])
+        out.append(float(np.sum(d.w[m] * rc * rc) / np.sum(d.w[m])))
+    return np.array(out)

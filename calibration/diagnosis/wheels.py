@@ -1,0 +1,135 @@
+"""Wheel-fixed excitation: what one wheelset of the leading bogie carries and the other not.
+
+The consistency channel (:mod:`calibration.diagnosis.records`) removes the rail: on round
+wheels it is sensor noise. Divided by v^2 and resampled to distance it is a *rail
+curvature* signal [1/m] in which anything fixed to a wheel's circumference (a polygonal
+wheel, a wheel flat's periodic part) is a line at a fixed wavenumber, whatever the speed,
+while sensor noise is spread. The extension (:class:`WheelPolygon`) is a radius deviation
+A cos(2 pi s / lambda + phi) on one wheelset; since no sensor tells the wheel's angle, the
+phase is a nuisance re-estimated per distance window, the amplitude and wavelength are
+the extension's parameters (fitted on training runs).
+
+Which wheelset carries it: the line's power in that wheelset's own axle-box spectrum
+stands above the other's (both see the rail's power at that wavenumber equally).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.ndimage
+
+from .records import Record
+
+
+@dataclass(frozen=True)
+class WheelSettings:
+    ds: float = 0.05  # [m] distance grid
+    window: float = 100.0  # [m] distance window (phase re-estimated per window)
+    wavelengths: tuple[float, float] = (0.4, 5.0)  # [m] searched
+    floor_width: float = 0.25  # relative width of the running-median floor in wavenumber
+    significance: float = 3.0  # line power / floor for a line to count as evidence
+
+
+def _distance_series(rec: Record, row: int, ds: float):
+    """The record's channel ``row`` divided by v^2 on a uniform distance grid."""
+    s = np.arange(rec.distance[0], rec.distance[-1], ds)
+    x = np.interp(s, rec.distance, rec.z[row] / np.maximum(rec.speed, 1.0) ** 2)
+    return s, x
+
+
+def _windows(records, row, settings: WheelSettings):
+    n = int(round(settings.window / settings.ds))
+    for rec in records:
+        s, x = _distance_series(rec, row, settings.ds)
+        for a in range(0, x.size - n + 1, n):
+            yield rec.run_id, s[a:a + n], x[a:a + n] - x[a:a + n].mean()
+
+
+@dataclass(frozen=True)
+class LineSpectrum:
+    wavenumber: np.ndarray  # [1/m]
+    power: np.ndarray  # mean power per bin (consistency channel)
+    floor: np.ndarray
+    axle1: np.ndarray  # the same for the two axle-box means
+    axle2: np.ndarray
+
+    @property
+    def ratio(self) -> np.ndarray:
+        return self.power / np.maximum(self.floor, 1e-300)
+
+    def strongest(self, settings: WheelSettings):
+        k = self.wavenumber
+        inside = (k >= 1 / settings.wavelengths[1]) & (k <= 1 / settings.wavelengths[0])
+        i = int(np.flatnonzero(inside)[np.argmax(self.ratio[inside])])
+        return i, float(self.ratio[i])
+
+
+def line_spectrum(records: list[Record], rows: dict, runs, settings: WheelSettings = WheelSettings()) -> LineSpectrum:
+    """Mean wavenumber power spectra (Hann windows) of the consistency channel and the two
+    axle-box means over the records of ``runs``. ``rows``: channel name -> row in Record.z."""
+    n = int(round(settings.window / settings.ds))
+    win = np.hanning(n)
+    k = np.fft.rfftfreq(n, settings.ds)
+    out = {}
+    for name in ("consistency", "axle1_mean", "axle2_mean"):
+        acc, count = np.zeros(k.size), 0
+        for run_id, _, x in _windows([r for r in records if r.run_id in runs], rows[name], settings):
+            acc += np.abs(np.fft.rfft(x * win)) ** 2
+            count += 1
+        out[name] = acc / max(count, 1)
+    p = out["consistency"]
+    size = max(5, int(settings.floor_width * np.median(k[1:]) / (k[1] - k[0])) | 1)
+    floor = scipy.ndimage.median_filter(p, size=size, mode="nearest")
+    return LineSpectrum(k, p, floor, out["axle1_mean"], out["axle2_mean"])
+
+
+@dataclass(frozen=True)
+class WheelPolygon:
+    """Fitted wheel-fixed line: wavelength [m], curvature amplitude [1/m] in the consistency
+    channel, the wheelset carrying it and the equivalent radius deviation [m]."""
+
+    wavelength: float
+    curvature_amplitude: float
+    wheelset: int
+    radius_amplitude: float
+    line_ratio: float  # line power over floor in the training spectrum
+
+    def to_json(self) -> dict:
+        return {"wheelset": self.wheelset, "wavelength_m": self.wavelength,
+                "radius_amplitude_m": self.radius_amplitude, "line_over_floor": self.line_ratio}
+
+
+def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettings()) -> WheelPolygon:
+    spec = line_spectrum(records, rows, train_runs, settings)
+    i, ratio = spec.strongest(settings)
+    # refine the wavenumber: maximise the mean line amplitude over training windows
+    k0 = spec.wavenumber[i]
+    grid = k0 + np.linspace(-1, 1, 41) * (spec.wavenumber[1] - spec.wavenumber[0])
+    best = None
+    for k in grid:
+        amps = [abs(np.mean(x * np.exp(-2j * np.pi * k * s))) * 2
+                for _, s, x in _windows([r for r in records if r.run_id in train_runs], rows["consistency"], settings)]
+        a = float(np.sqrt(np.mean(np.square(amps)))) if amps else 0.0
+        if best is None or a > best[1]:
+            best = (k, a)
+    k, amp = best
+    # which wheelset: the line's excess power in that wheelset's own axle-box spectrum
+    j = 1 if spec.axle1[i] >= spec.axle2[i] else 2
+    radius = amp / (2 * np.pi * k) ** 2
+    return WheelPolygon(float(1 / k), amp, j, float(radius), ratio)
+
+
+def polygon_error(records, rows, runs, poly: WheelPolygon | None, settings: WheelSettings = WheelSettings()):
+    """Mean square of the consistency channel (curvature units) over the windows of ``runs``,
+    after removing the polygon's line (amplitude fixed, phase fitted per window)."""
+    tot, n = 0.0, 0
+    for _, s, x in _windows([r for r in records if r.run_id in runs], rows["consistency"], settings):
+        if poly is not None:
+            k = 1 / poly.wavelength
+            c = np.mean(x * np.exp(-2j * np.pi * k * s))
+            phase = np.angle(c)
+            x = x - poly.curvature_amplitude * np.cos(2 * np.pi * k * s + phase)
+        tot += float(np.mean(x * x))
+        n += 1
+    return tot / max(n, 1)
