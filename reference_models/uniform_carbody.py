@@ -329,7 +329,7 @@ def build_exudyn_system(shell: UniformShell, lattice: Lattice, settings: Lattice
     """The whole lattice as one exudyn system (dense export: coarse lattices only).
     Returns (mbs, SC, node_of) with node_of[(point, direction)] the exudyn node."""
     import exudyn as exu
-    from exudyn.itemInterface import MarkerNodeRigid, NodeRigidBodyRotVecLG, ObjectBeamGeometricallyExact
+    from exudyn.itemInterface import NodeRigidBodyRotVecLG, ObjectBeamGeometricallyExact
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
     node_of, items = _lattice_items(shell, lattice, settings)
@@ -342,17 +342,22 @@ def build_exudyn_system(shell: UniformShell, lattice: Lattice, settings: Lattice
                                                        sectionData=sec))
         else:
             k0, k1, kt, kr = data
-            m0, m1 = (mbs.AddMarker(MarkerNodeRigid(nodeNumber=nodes[k])) for k in (k0, k1))
-            _add_weld(mbs, m0, m1, k0[1], k1[1], kt, kr)
+            _add_weld(mbs, nodes[k0], nodes[k1], k0[1], k1[1], kt, kr)
     mbs.Assemble()
     return mbs, SC, nodes
 
 
-def _add_weld(mbs, m0, m1, d0, d1, kt, kr):
-    from exudyn.itemInterface import ObjectConnectorRigidBodySpringDamper
+def _add_weld(mbs, n0, n1, d0, d1, kt, kr):
+    """Weld nodes n0, n1 (frames _frame(d0), _frame(d1)) by translational and rotational
+    springs kt [N/m], kr [N m/rad]. Each marker is turned back by its node's frame (its localHT),
+    so both marker frames are the global axes in the reference configuration: the weld is
+    relaxed there, whatever the two nodes' directions."""
+    import exudyn as exu
+    from exudyn.itemInterface import MarkerNodeRigid, ObjectConnectorRigidBodySpringDamper
+    m0, m1 = (mbs.AddMarker(MarkerNodeRigid(nodeNumber=n, localHT=exu.HT(rotation=_frame(d).T, translation=[0.0] * 3)))
+              for n, d in ((n0, d0), (n1, d1)))
     mbs.AddObject(ObjectConnectorRigidBodySpringDamper(
-        markerNumbers=[m0, m1], stiffness=np.diag([kt] * 3 + [kr] * 3), damping=np.zeros((6, 6)),
-        rotationMarker0=_frame(d0).T, rotationMarker1=_frame(d1).T))
+        markerNumbers=[m0, m1], stiffness=np.diag([kt] * 3 + [kr] * 3), damping=np.zeros((6, 6))))
 
 
 def _lattice_items(shell, lattice, settings):
@@ -385,7 +390,7 @@ def _item_matrices(kind, data, points):
 
 def _two_node_system(kind, data, points):
     import exudyn as exu
-    from exudyn.itemInterface import MarkerNodeRigid, NodeRigidBodyRotVecLG, ObjectBeamGeometricallyExact
+    from exudyn.itemInterface import NodeRigidBodyRotVecLG, ObjectBeamGeometricallyExact
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
     k0, k1 = data[0], data[1]
@@ -393,8 +398,7 @@ def _two_node_system(kind, data, points):
     if kind == "beam":
         mbs.AddObject(ObjectBeamGeometricallyExact(nodeNumbers=[n0, n1], length=data[2], sectionData=data[3]))
     else:
-        m0, m1 = (mbs.AddMarker(MarkerNodeRigid(nodeNumber=n)) for n in (n0, n1))
-        _add_weld(mbs, m0, m1, k0[1], k1[1], data[2], data[3])
+        _add_weld(mbs, n0, n1, k0[1], k1[1], data[2], data[3])
     mbs.Assemble()
     return mbs, SC, (n0, n1)
 
