@@ -1,6 +1,7 @@
-"""The exudyn build of the box-type vehicle (reference_models.box), issue 6: one CMS flexible
-carbody from the free carbody's own modes, rigid bogies and CartesianSpringDamper suspension,
-built from the vehicle description and the stiffness factors alone. On the coarse model
+"""The exudyn build of the box-type vehicle (reference_models.box), issue 6: a modal flexible
+carbody from the free carbody's own modes (its modal equations an ObjectGenericODE2, its
+attachment points a CMS body on the same coordinates), rigid bogies and CartesianSpringDamper
+suspension, built from the vehicle description and the stiffness factors alone. On the coarse model
 (order_change = -4, 969 DOF) it must have railcal's vehicle eigenfrequencies below 20 Hz
 (reduced vehicle and full model, 1e-4 relative), railcal's static floor deflection under the
 exciter, and railcal's exact floor accelerations to a band-random exciter force
@@ -68,6 +69,41 @@ def test_eigenfrequencies_below_20_hz_agree_with_the_reduced_and_the_full_model(
     for theirs in (reduced_frequencies(reduced, 20.0), full_frequencies(model, p, 20.0)):
         assert len(ours) == len(theirs) >= 18  # six carbody-on-suspension, twelve bogie modes
         assert eigen_errors(theirs, ours).max() <= 1e-4
+
+
+def test_one_computation_of_the_carbody_modes_serves_several_builds(coarse, built):
+    """The modal data of one build make another with the same frequencies; modal data for a
+    different cut-off are refused by name."""
+    model, p, _ = coarse
+    mbs, h = built
+    again, h2 = build_box_exudyn(model, p, cutoff_hz=CUTOFF, zeta=ZETA, modes=h.modes)
+    assert h2.modes is h.modes
+    np.testing.assert_allclose(exudyn_frequencies(again, 20.0), exudyn_frequencies(mbs, 20.0), rtol=1e-12)
+    with pytest.raises(ValueError, match="modes: computed for a cut-off of 60.0 Hz, here 40.0 Hz"):
+        build_box_exudyn(model, p, cutoff_hz=40.0, zeta=ZETA, modes=h.modes)
+
+
+def test_the_carbody_mass_and_stiffness_are_its_modal_equations_alone(coarse, built):
+    """exudyn's linearised system on the carbody's modal coordinates: mass I and, with the
+    bogies and suspension taken out of the stiffness, diag(omega^2); the CMS body (FFRF terms
+    off, frame held) adds nothing."""
+    import exudyn as exu
+
+    mbs, h = built
+    ss = exu.SimulationSettings()
+    ss.staticSolver.newton.numericalDifferentiation.jacobianConnectorDerivative = False  # as exudyn_frequencies
+    M, K, _ = mbs.ComputeLinearizedSystem(ss)
+    ltg = mbs.GetNodeODE2Index(h.modal_node)
+    n = h.modes.omega.size
+    sl = slice(ltg, ltg + n)
+    np.testing.assert_allclose(np.asarray(M)[sl, sl], np.eye(n), atol=1e-12)
+    # the suspension's part of K on eta: D^T k D over the seats, from the attachment rows
+    Kc = np.asarray(K)[sl, sl] - np.diag(h.modes.omega**2)
+    assert np.abs(Kc).max() > 0  # the suspension does act on the carbody ...
+    seats = [ln for ln in coarse[0].vehicle.links if ln.name in h.mesh]
+    Ks = sum(h.modes.basis[3 * h.mesh[ln.name]:3 * h.mesh[ln.name] + 3].T @ np.diag(ln.k)
+             @ h.modes.basis[3 * h.mesh[ln.name]:3 * h.mesh[ln.name] + 3] for ln in seats)
+    np.testing.assert_allclose(Kc, Ks, rtol=1e-9, atol=1e-9 * np.abs(Ks).max())  # ... and nothing else
 
 
 def test_a_static_exciter_force_deflects_the_floor_as_railcal_does(coarse):
