@@ -34,6 +34,33 @@ offset) is added before an 8th-order Butterworth low-pass at 80 Hz, applied caus
 every channel (force included, so H1 = G_fy / G_ff is unaffected), and the channels are
 decimated to 200 Hz. Each run starts ``pre_roll`` seconds after the excitation, when
 the start transient has decayed. Everything random comes from one seeded generator.
+
+Hidden effects (:mod:`calibration.truth.effects`; their details come from a second
+generator, ``default_rng([seed, EFFECT_STREAM])``, so the effect-free campaign of a seed
+is unchanged and the same seed draws the same vehicle parameters with or without one):
+
+* ``underfloor_equipment``: a rigid mass m_e = MAGNITUDE x the carbody mass hung on a
+  vertical spring-damper (damping ratio 5 %) under a floor point off the centre line
+  (x drawn in -7..7 m between the bolsters, y = +-0.8 m, side drawn, at least 2 m from the
+  exciter). Its mounting frequency sqrt(k_e / m_e) is the frequency of one carbody elastic
+  mode in 8-20 Hz times 1 + U(-4 %, +4 %); the mode is drawn among those the mount point
+  and the exciter-to-sensor path both see (each >= 1/4 of the best in the band). The
+  equipment is one more DOF coupled to the modal truth through the modes' values at the
+  mount point, the modal basis carrying a second residual pseudo-mode (the static response
+  of the omitted modes to a load at the mount), so the coupled frequencies equal the full
+  box model's with the extra DOF (to 1e-5, tested). The coupled (modal + 1) system is
+  re-diagonalised (:func:`add_equipment`): undamped modes, and the damping matrix in their
+  coordinates kept whole (the mount's damper couples the split modes), so the simulation
+  and :meth:`ModalModel.frf` are exact and the truth lists the damped system's poles.
+  The tuned mode splits into a coupled mode below and one above its frequency
+  (:meth:`EquipmentModes.split`); the split (about sqrt(m_e phi^2) of the frequency for an
+  isolated mode) is often wider than the spacing of the carbody's modes, so neighbouring
+  modes take part too.
+* ``local_panel_softening``: one of the roof, front, middle and rear floor panels (drawn)
+  has its eight rigidities divided by MAGNITUDE; the vehicle is re-assembled with that
+  panel's properties (:func:`soften_panel`); the stiffness factors of its group still act
+  on it. The roof is a single panel, so its softening equals roof_membrane and
+  roof_bending factors / MAGNITUDE; a floor panel's cannot be expressed by the factors.
 """
 from __future__ import annotations
 
@@ -42,13 +69,16 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
+import scipy.linalg
+import scipy.optimize
 import scipy.signal
 import scipy.sparse.linalg
 
 from ..data.campaign import CampaignMeta, CampaignWriter, Excitation, Prior, Sensor, write_json_atomic
 from ..models.box import SEARCH_PARAMETERS, BoxModel, assemble, shinkansen_vehicle
-from ..models.box.fit import sensor_operator
+from ..models.box.fit import mac_matrix, sensor_operator
 from ..models.box.reduced import full_modes
+from ..models.box.panel import Panel
 from ..models.box.shinkansen import ORDERS, Geometry, floor_panel
 from ..models.car2d import StateSpace
 from ..models.simulate import ModalSimulator
@@ -147,8 +177,13 @@ class ModalModel:
 
     ``sensor_shapes[o, k]`` and ``exciter_shape[k]`` are the vertical displacements of
     M-normalised mode k at sensor o of :data:`SENSOR_GRID` and at the exciter [1/sqrt(kg)];
-    ``kind[k]`` is ``"elastic"``, ``"carbody_rigid"``, ``"bogie"`` or ``"residual"``;
-    ``suspension_damping`` the proportional estimate phi^T C phi / (2 omega) [-].
+    ``kind[k]`` is ``"elastic"``, ``"carbody_rigid"``, ``"bogie"`` or ``"residual"``
+    (residual pseudo-modes come last); ``suspension_damping`` the proportional estimate
+    phi^T C phi / (2 omega) [-].
+
+    ``damping_matrix`` (n, n) [1/s], when given, replaces diag(2 zeta omega): the modal
+    equations are q'' + D q' + diag(omega^2) q = phi_e f, and ``damping_ratio`` is then
+    only its diagonal's estimate D_kk / (2 omega_k) (:meth:`poles` gives the exact ones).
     """
 
     parameters: Mapping[str, float]
@@ -158,21 +193,54 @@ class ModalModel:
     sensor_shapes: np.ndarray  # (n_sensors, n)
     exciter_shape: np.ndarray  # (n,)
     suspension_damping: np.ndarray  # (n,)
+    damping_matrix: np.ndarray | None = None  # (n, n) [1/s]; None: modal damping
+
+    def _damping(self) -> np.ndarray:
+        if self.damping_matrix is not None:
+            return self.damping_matrix
+        return np.diag(2 * self.damping_ratio * 2 * np.pi * self.frequency_hz)
 
     def frf(self, frequency) -> np.ndarray:
         """Accelerance H[i, o] = a_o / F [(m/s^2)/N] at ``frequency[i]`` [Hz], time
         dependence exp(+i omega t) (the convention of ``scipy.signal.csd``)."""
         w = 2 * np.pi * np.asarray(frequency, float)[:, None]
         wn = 2 * np.pi * self.frequency_hz[None, :]
-        g = -w**2 * self.exciter_shape / (wn**2 - w**2 + 2j * self.damping_ratio * wn * w)
-        return g @ self.sensor_shapes.T
+        if self.damping_matrix is None:
+            g = -w**2 * self.exciter_shape / (wn**2 - w**2 + 2j * self.damping_ratio * wn * w)
+            return g @ self.sensor_shapes.T
+        # C (i omega - A)^-1 B + D through the state matrix's eigenvectors (complex modes)
+        ss = self.state_space()
+        lam, V = np.linalg.eig(ss.A)
+        left, right = ss.C @ V, np.linalg.solve(V, ss.B[:, 0])
+        return (right / (1j * w - lam)) @ left.T + ss.D[:, 0]
+
+    def poles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Natural frequency |s| / 2 pi [Hz] and damping ratio -Re(s) / |s| [-] of each
+        mode's pole s, in mode order. Modal damping: ``frequency_hz`` and ``damping_ratio``
+        themselves; a damping matrix: the state matrix's eigenvalues, each assigned to the
+        undamped mode that dominates its eigenvector."""
+        if self.damping_matrix is None:
+            return self.frequency_hz, self.damping_ratio
+        n = self.frequency_hz.size
+        s, V = np.linalg.eig(self.state_space().A)
+        upper = s.imag > 0
+        if upper.sum() != n:
+            raise ValueError(f"{n - upper.sum()} of {n} modes are overdamped; no pole pairs to list")
+        s, V = s[upper], V[:n, upper]
+        content = np.abs(V) ** 2 / np.sum(np.abs(V) ** 2, axis=0)  # (mode, pole)
+        mode, pole = scipy.optimize.linear_sum_assignment(-content)
+        s = s[pole[np.argsort(mode)]]
+        return np.abs(s) / (2 * np.pi), -s.real / np.abs(s)
 
     def state_space(self) -> StateSpace:
         """x = [q; q'] (modal), input the exciter force [N], outputs the sensors'
         accelerations [m/s^2] (with the feed-through of the force)."""
         n = self.frequency_hz.size
         wn = 2 * np.pi * self.frequency_hz
-        dyn = np.hstack([-np.diag(wn**2), -np.diag(2 * self.damping_ratio * wn)])  # q'' = dyn x + phi_e f
+        if self.damping_matrix is None:
+            dyn = np.hstack([-np.diag(wn**2), -np.diag(2 * self.damping_ratio * wn)])  # q'' = dyn x + phi_e f
+        else:
+            dyn = np.hstack([-np.diag(wn**2), -self.damping_matrix])
         A = np.vstack([np.hstack([np.zeros((n, n)), np.eye(n)]), dyn])
         B = np.concatenate([np.zeros(n), self.exciter_shape])[:, None]
         C = self.sensor_shapes @ dyn
@@ -214,7 +282,7 @@ def _rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
 
 def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
                 settings: ExcitationSettings = ExcitationSettings(), model: BoxModel | None = None,
-                sensors=SENSOR_GRID, exciter=EXCITER) -> ModalModel:
+                sensors=SENSOR_GRID, exciter=EXCITER, residual_points=()) -> ModalModel:
     """Modal model of the full box model at ``parameters`` (factors by name; missing ones
     nominal 1): every mode up to ``settings.max_mode_hz`` and the residual pseudo-mode.
 
@@ -224,7 +292,12 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
     ``elastic_damping`` for elastic ones (the simulator draws these per seed).
     ``model``: the assembled vehicle, built from ``settings`` when not given.
     ``sensors``, ``exciter``: campaign sensors the shapes are taken at (default: this
-    simulator's grid and exciter)."""
+    simulator's grid and exciter).
+    ``residual_points``: further points (sensors: position and direction) where a load
+    acts; the static response of the omitted modes to the exciter force and to a unit load
+    at each of these spans the residual pseudo-modes (one per load, M- and K-orthogonal to
+    each other and to the kept modes, damping ``settings.residual_damping``), so a spring
+    attached there sees the full model's static flexibility."""
     parameters = dict(parameters or {})
     names = PARAMETER_NAMES if model is None else model.names
     unknown = sorted(set(parameters) - set(names))
@@ -242,11 +315,19 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
     f, X = f[keep], X[:, keep]
     w = 2 * np.pi * f
     S, e = vertical_operators(model, sensors, exciter)
-    # residual pseudo-mode: static response of the omitted modes to the exciter force
-    psi = scipy.sparse.linalg.splu(model.stiffness(p).tocsc()).solve(e) - X @ (X.T @ e / w**2)
-    m_psi = psi @ (model.M @ psi)
-    psi_hat = psi / np.sqrt(m_psi)
-    f_res = np.sqrt((psi @ e) / m_psi) / (2 * np.pi)
+    if residual_points:
+        loads = np.column_stack([e, *sensor_operator(model, residual_points)])
+        Psi = scipy.sparse.linalg.splu(model.stiffness(p).tocsc()).solve(loads) - X @ (X.T @ loads / w[:, None] ** 2)
+        k_psi = Psi.T @ loads  # = Psi^T K Psi, as X^T M Psi = 0
+        lam, Z = scipy.linalg.eigh((k_psi + k_psi.T) / 2, Psi.T @ (model.M @ Psi))
+        psi_hat, f_res = Psi @ Z, np.sqrt(lam) / (2 * np.pi)
+    else:
+        # residual pseudo-mode: static response of the omitted modes to the exciter force
+        psi = scipy.sparse.linalg.splu(model.stiffness(p).tocsc()).solve(e) - X @ (X.T @ e / w**2)
+        m_psi = psi @ (model.M @ psi)
+        psi_hat = psi / np.sqrt(m_psi)
+        f_res = np.sqrt((psi @ e) / m_psi) / (2 * np.pi)
+    n_res = np.size(f_res)
     # kinds and the suspension's damping estimate
     bogies = np.concatenate([np.arange(model.n_dof)[model.dof_slices[b.name]] for b in model.vehicle.bodies])
     bogie_share = np.einsum("ij,ij->j", X[bogies], (model.M @ X)[bogies])
@@ -254,17 +335,173 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
     kind = tuple("bogie" if b > 0.5 else "carbody_rigid" if r > 0.95 else "elastic" for b, r in zip(bogie_share, rigid))
     zeta_s = np.einsum("ij,ij->j", X, model.C @ X) / (2 * w)
     zeta = np.append(np.where(np.array(kind) == "elastic", np.mean(settings.elastic_damping),
-                              np.clip(zeta_s, *settings.suspension_damping)), settings.residual_damping)
+                              np.clip(zeta_s, *settings.suspension_damping)), [settings.residual_damping] * n_res)
     if damping is not None:
         if len(damping) != zeta.size:
-            raise ValueError(f"damping has {len(damping)} ratios; the model keeps {zeta.size - 1} modes and the "
-                             f"residual pseudo-mode ({zeta.size})")
+            raise ValueError(f"damping has {len(damping)} ratios; the model keeps {zeta.size - n_res} modes and "
+                             f"{n_res} residual pseudo-mode(s) ({zeta.size})")
         zeta = np.asarray(damping, float)
     return ModalModel(
         parameters={nm: float(v) for nm, v in zip(model.names, p)},
         frequency_hz=np.append(f, f_res), damping_ratio=zeta,
-        kind=kind + ("residual",), sensor_shapes=np.column_stack([S @ X, S @ psi_hat]),
-        exciter_shape=np.append(X.T @ e, psi_hat @ e), suspension_damping=np.append(zeta_s, 0.0))
+        kind=kind + ("residual",) * n_res, sensor_shapes=np.column_stack([S @ X, S @ psi_hat]),
+        exciter_shape=np.append(X.T @ e, psi_hat.T @ e), suspension_damping=np.append(zeta_s, [0.0] * n_res))
+
+
+# -------------------------------------------------------------------- hidden effects
+EFFECT_STREAM = 7  #: effect details come from ``np.random.default_rng([seed, EFFECT_STREAM])``
+SOFTENING_PANELS = ("roof", "floor_front", "floor_middle", "floor_rear")  #: candidates, drawn uniformly
+EQUIPMENT_X = (-7.0, 7.0)  #: [m] mount point x, drawn uniformly (between the bogie bolsters at +-8.75 m)
+EQUIPMENT_Y = 0.8  #: [m] mount point |y| (off the centre line; the side is drawn)
+EQUIPMENT_CLEARANCE = 2.0  #: [m] least distance of the mount point from the exciter (redrawn if closer)
+EQUIPMENT_BAND = (8.0, 20.0)  #: [Hz] elastic modes the mount may be tuned to
+EQUIPMENT_DETUNING = 0.04  #: mounting frequency = tuned mode's x (1 + U(-0.04, 0.04))
+EQUIPMENT_DAMPING = 0.05  #: mount damping ratio c_e / (2 sqrt(k_e m_e))
+
+
+def carbody_mass(model: BoxModel) -> float:
+    """Carbody mass [kg]: the panels' areal masses and the masses carried on them."""
+    return float(sum(pn.mass for pn in model.vehicle.panels) + sum(pm.mass for pm in model.vehicle.masses))
+
+
+def soften_panel(model: BoxModel, panel: str, divisor: float) -> BoxModel:
+    """The vehicle of ``model`` re-assembled with the eight rigidities of ``panel`` divided
+    by ``divisor`` (the stiffness factors of its group still multiply them)."""
+    names = [pn.name for pn in model.vehicle.panels]
+    if panel not in names:
+        raise ValueError(f"no panel {panel!r}; panels: {', '.join(names)}")
+    if not divisor > 0:
+        raise ValueError(f"rigidity divisor must be positive, got {divisor}")
+    panels = tuple(replace(pn, rigidity={k: v / divisor for k, v in pn.rigidity.items()}) if pn.name == panel
+                   else pn for pn in model.vehicle.panels)
+    return assemble(replace(model.vehicle, panels=panels))
+
+
+@dataclass(frozen=True)
+class UnderfloorEquipment:
+    """A rigid mass hung under the floor on a resilient mount: one vertical spring-damper
+    between the mass and a floor point. SI units."""
+
+    mass: float  # [kg] m_e
+    position: tuple[float, float, float]  # [m] mount point on the floor, carbody frame
+    frequency_hz: float  # [Hz] mounting frequency sqrt(k_e / m_e) / (2 pi) (on a rigid floor)
+    damping_ratio: float = EQUIPMENT_DAMPING  # [-] c_e / (2 sqrt(k_e m_e))
+
+    def __post_init__(self):
+        if not (self.mass > 0 and self.frequency_hz > 0 and self.damping_ratio >= 0):
+            raise ValueError(f"underfloor equipment needs mass > 0, frequency_hz > 0 and damping_ratio >= 0; got "
+                             f"{self.mass} kg, {self.frequency_hz} Hz, {self.damping_ratio}")
+
+    @property
+    def stiffness(self) -> float:
+        """k_e [N/m]."""
+        return self.mass * (2 * np.pi * self.frequency_hz) ** 2
+
+    @property
+    def damping(self) -> float:
+        """c_e [N s/m]."""
+        return 2 * self.damping_ratio * np.sqrt(self.stiffness * self.mass)
+
+    def mount(self) -> Sensor:
+        return mount_point(self.position)
+
+
+def mount_point(position) -> Sensor:
+    """The equipment's mount point as a vertical floor 'sensor' (where the modes are read)."""
+    return Sensor("equipment_mount", "displacement", "m", "floor", "z", tuple(float(v) for v in position))
+
+
+@dataclass(frozen=True, eq=False)
+class EquipmentModes:
+    """The modal truth with the equipment: ``modal`` (n + 1 modes); per coupled mode the
+    equipment's displacement ``equipment_shape`` and the mount point's ``mount_shape``
+    [1/sqrt(kg)]; ``structure`` (n, n + 1) the coupled modes in the uncoupled modes'
+    coordinates (per column, its squares and m_e equipment_shape^2 sum to 1);
+    ``uncoupled_hz`` (n,) the uncoupled frequencies [Hz] and ``uncoupled_mount`` (n,) the
+    uncoupled modes' values at the mount point [1/sqrt(kg)]."""
+
+    modal: ModalModel
+    equipment_shape: np.ndarray  # (n + 1,)
+    mount_shape: np.ndarray  # (n + 1,)
+    structure: np.ndarray  # (n, n + 1)
+    uncoupled_hz: np.ndarray  # (n,)
+    uncoupled_mount: np.ndarray  # (n,)
+    equipment: UnderfloorEquipment
+
+    @property
+    def equipment_share(self) -> np.ndarray:
+        """Fraction of each coupled mode's kinetic energy in the equipment [-]."""
+        return self.equipment.mass * self.equipment_shape**2
+
+    def split(self, mode: int) -> tuple[int, int]:
+        """The two coupled modes uncoupled mode ``mode`` splits into: of the coupled modes
+        below its frequency, the one holding most of it (largest ``structure[mode]^2``),
+        and likewise above. (With a heavy mass among close modes, the tuned mode spreads
+        over more than two; these are its largest parts on either side.)"""
+        content, below = self.structure[mode] ** 2, self.modal.frequency_hz < self.uncoupled_hz[mode]
+        if below.all() or not below.any():
+            raise ValueError(f"mode {mode} has no coupled mode on one side")
+        return int(np.argmax(np.where(below, content, -1.0))), int(np.argmax(np.where(below, -1.0, content)))
+
+
+def add_equipment(modal: ModalModel, mount_shape: np.ndarray, equipment: UnderfloorEquipment) -> EquipmentModes:
+    """Couple ``equipment`` to ``modal`` at a floor point where the modes' vertical
+    displacements are ``mount_shape`` (n,) [1/sqrt(kg)], and re-diagonalise.
+
+    In the coordinates (q, z_e): M = diag(I, m_e); K = diag(omega^2, 0) + k_e b b^T,
+    C = D + c_e b b^T with b = (mount_shape, -1) (the spring's extension), D the modal
+    damping (or ``modal.damping_matrix``). The undamped problem K y = lambda M y gives the
+    coupled modes (M-normalised); C in their coordinates is kept whole as the coupled
+    model's ``damping_matrix``, so nothing is approximated. A coupled mode's kind is that
+    of the uncoupled mode dominating it."""
+    a = np.asarray(mount_shape, float)
+    n = modal.frequency_hz.size
+    if a.shape != (n,):
+        raise ValueError(f"mount_shape has shape {a.shape}; the modal model has {n} modes")
+    w = 2 * np.pi * modal.frequency_hz
+    b = np.append(a, -1.0)
+    M = np.diag(np.append(np.ones(n), equipment.mass))
+    K = np.diag(np.append(w**2, 0.0)) + equipment.stiffness * np.outer(b, b)
+    C = scipy.linalg.block_diag(modal._damping(), 0.0) + equipment.damping * np.outer(b, b)
+    lam, Y = scipy.linalg.eigh(K, M)
+    wc = np.sqrt(lam)
+    D = Y.T @ C @ Y
+    Yq = Y[:n]
+    kind = tuple(modal.kind[k] for k in np.argmax(Yq**2, axis=0))
+    suspension = np.einsum("kj,k,kj->j", Yq, 2 * modal.suspension_damping * w, Yq) / (2 * wc)
+    coupled = ModalModel(parameters=modal.parameters, frequency_hz=wc / (2 * np.pi),
+                         damping_ratio=np.diag(D) / (2 * wc), kind=kind, sensor_shapes=modal.sensor_shapes @ Yq, exciter_shape=Yq.T @ modal.exciter_shape,
+                         suspension_damping=suspension, damping_matrix=D)
+    return EquipmentModes(coupled, Y[n], a @ Yq, Yq, modal.frequency_hz, a, equipment)
+
+
+def draw_equipment_position(rng: np.random.Generator, exciter=EXCITER) -> tuple[float, float, float]:
+    """Mount point [m]: x uniform in :data:`EQUIPMENT_X`, y = +-:data:`EQUIPMENT_Y` (side
+    drawn), on the floor; redrawn while within :data:`EQUIPMENT_CLEARANCE` of the exciter."""
+    while True:
+        x = float(rng.uniform(*EQUIPMENT_X))
+        y = float(EQUIPMENT_Y * rng.choice([-1.0, 1.0]))
+        if np.hypot(x - exciter.position[0], y - exciter.position[1]) >= EQUIPMENT_CLEARANCE:
+            return round(x, 3), y, GEOMETRY.floor_z
+
+
+def choose_tuned_mode(modal: ModalModel, mount_shape: np.ndarray, rng: np.random.Generator,
+                      band: tuple[float, float] = EQUIPMENT_BAND) -> int:
+    """Index of the mode the equipment is tuned to, drawn uniformly among the elastic
+    modes in ``band`` [Hz] that the mount point moves in (mount_shape^2) and that the
+    exciter drives at the sensors (|phi_e| x norm of the sensor shapes), each at least a
+    quarter of the largest in the band (else the best by the product of the two)."""
+    f = modal.frequency_hz
+    cand = np.flatnonzero((f >= band[0]) & (f <= band[1]) & (np.asarray(modal.kind) == "elastic"))
+    if cand.size == 0:
+        raise ValueError(f"no elastic mode in {band} Hz to tune the underfloor equipment to")
+    mu = np.asarray(mount_shape)[cand] ** 2
+    seen = np.abs(modal.exciter_shape[cand]) * np.linalg.norm(modal.sensor_shapes[:, cand], axis=0)
+    mu, seen = mu / mu.max(), seen / seen.max()
+    ok = (mu >= 0.25) & (seen >= 0.25)
+    if not ok.any():
+        ok = np.arange(cand.size) == np.argmax(mu * seen)
+    return int(rng.choice(cand[ok]))
 
 
 # ------------------------------------------------------------------------------ runs
@@ -313,13 +550,113 @@ def _unit_shapes(shapes: np.ndarray) -> np.ndarray:
     return shapes / peak
 
 
+def _settings_from_json(d: Mapping) -> ExcitationSettings:
+    return ExcitationSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+def truth_model(truth: Mapping, *, model: BoxModel | None = None) -> ModalModel:
+    """The system a truth file of :func:`synth_excitation` says was simulated, hidden
+    effect included, rebuilt exactly (same modes, damping, shapes at :data:`SENSOR_GRID`).
+    ``model``: the assembled vehicle without effect, built from the file's settings when
+    not given."""
+    settings = _settings_from_json(truth["settings"])
+    model = build_model(settings) if model is None else model
+    effect = truth["effect"] or {}
+    if effect.get("name") == "underfloor_equipment":
+        equipment = UnderfloorEquipment(effect["equipment_mass_kg"], tuple(effect["position_m"]),
+                                        effect["mounting_frequency_hz"], effect["mounting_damping_ratio"])
+        mounts = (equipment.mount(),)
+        base = truth_modes(truth["parameters"], damping=effect["structure_damping_ratios"], settings=settings,
+                           model=model, sensors=SENSOR_GRID + mounts, residual_points=mounts)
+        base, mount_shape = replace(base, sensor_shapes=base.sensor_shapes[:-1]), base.sensor_shapes[-1]
+        return add_equipment(base, mount_shape, equipment).modal
+    if effect.get("name") == "local_panel_softening":
+        model = soften_panel(model, effect["panel"], effect["magnitude"])
+    return truth_modes(truth["parameters"], damping=truth["modes_kept"]["damping_ratios"], settings=settings,
+                       model=model)
+
+
+def _labels(modal: ModalModel, band) -> tuple[np.ndarray, list[str]]:
+    listed = modal.listed(band)
+    return listed, [f"mode_{k + 1:02d}" for k in listed]  # numbered as in the full model, lowest first
+
+
+def _equipment_record(coupled: EquipmentModes, tuned: int, detuning: float, carbody_kg: float,
+                      structure_damping: np.ndarray, band) -> dict:
+    """What the truth file says about the underfloor equipment (see :func:`synth_excitation`)."""
+    eq, modal = coupled.equipment, coupled.modal
+    f, _ = modal.poles()
+    listed, labels = _labels(modal, band)
+    lo, hi = coupled.split(tuned)
+    base_hz = coupled.uncoupled_hz
+    a = coupled.uncoupled_mount
+    share = coupled.equipment_share
+    base_band = np.flatnonzero((base_hz >= band[0]) & (base_hz <= band[1]))
+    return {
+        "equipment_mass_kg": eq.mass, "carbody_mass_kg": carbody_kg, "position_m": list(eq.position),
+        "panel": floor_panel(eq.position[0]), "mounting_frequency_hz": eq.frequency_hz,
+        "mounting_damping_ratio": eq.damping_ratio, "mounting_stiffness_n_per_m": eq.stiffness,
+        "mounting_damping_n_s_per_m": eq.damping, "detuning": detuning,
+        "tuned_mode": {"label": f"mode_{tuned + 1:02d}", "frequency_hz": float(base_hz[tuned]),
+                       "mount_shape": float(a[tuned]), "effective_mass_ratio": float(eq.mass * a[tuned] ** 2)},
+        "split_modes": {f"mode_{k + 1:02d}": float(f[k]) for k in (lo, hi)},
+        "split_content": [float(coupled.structure[tuned, k] ** 2) for k in (lo, hi)],
+        "split_hz": float(f[hi] - f[lo]), "split_pct": float(100 * (f[hi] - f[lo]) / base_hz[tuned]),
+        "equipment_energy_share": {lb: float(share[k]) for lb, k in zip(labels, listed) if share[k] >= 0.01},
+        "uncoupled_frequencies_hz": {f"mode_{k + 1:02d}": float(base_hz[k]) for k in base_band},
+        "structure_damping_ratios": structure_damping.tolist(),
+    }
+
+
+def _softening_record(modal: ModalModel, unsoftened: ModalModel, panel: Panel, band) -> dict:
+    """What the truth file says about the softened panel: the unsoftened vehicle's modes
+    (same parameters) and each listed mode's change, paired by MAC at the sensors."""
+    listed, labels = _labels(modal, band)
+    base_listed, base_labels = _labels(unsoftened, (band[0], 2 * band[1]))
+    mac = mac_matrix(modal.sensor_shapes[:, listed], unsoftened.sensor_shapes[:, base_listed])
+    rows, cols = scipy.optimize.linear_sum_assignment(-mac)
+    changes = {}
+    for r, c in zip(rows, cols):
+        if mac[r, c] >= 0.9:
+            f0 = unsoftened.frequency_hz[base_listed[c]]
+            changes[labels[r]] = {"unsoftened": base_labels[c], "unsoftened_hz": float(f0),
+                                  "change_pct": float(100 * (modal.frequency_hz[listed[r]] / f0 - 1)),
+                                  "mac": float(mac[r, c])}
+    keep = unsoftened.frequency_hz[base_listed] <= band[1]
+    return {"panel": panel.name, "group": panel.group, "panel_area_m2": panel.a * panel.b,
+            "unsoftened_frequencies_hz": {lb: float(unsoftened.frequency_hz[k])
+                                          for lb, k, ok in zip(base_labels, base_listed, keep) if ok},
+            "frequency_changes": dict(sorted(changes.items()))}
+
+
 def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = ExcitationSettings(),
                      effect: EffectChoice | None = None, fmt: str = "csv", overwrite: bool = False,
                      model: BoxModel | None = None, progress=None) -> dict:
     """Write a synthetic stationary excitation campaign to ``out`` and its truth to
     ``out.truth.json``; returns the truth. ``model``: the assembled vehicle (built from
-    ``settings`` when not given; pass it to reuse one assembly over many seeds)."""
-    if effect is not None:
+    ``settings`` when not given; pass it to reuse one assembly over many seeds).
+
+    ``effect``: a hidden effect of the catalogue for stationary tests (module docstring).
+    ``truth["effect"]`` is then ``effect.to_json()`` and the drawn details:
+
+    * underfloor equipment: mass, carbody mass, mount position and panel, mounting
+      frequency, damping ratio, stiffness and damper, the detuning, the tuned mode (label
+      and frequency without the equipment, its value at the mount, m_e phi^2), the two
+      ``split_modes`` it became (labels of the truth's listing, pole frequencies; see
+      :meth:`EquipmentModes.split`), the share of the tuned mode each holds
+      (``split_content``), their distance (``split_hz``, ``split_pct`` of the tuned
+      frequency), each listed
+      mode's kinetic energy share in the equipment (>= 1 %), the listing without the
+      equipment, and the structure's modal damping (to rebuild the truth, :func:`truth_model`);
+    * panel softening: the panel, its group and area, the unsoftened vehicle's modes and
+      each listed mode's frequency change against its MAC-paired unsoftened mode.
+
+    The truth lists the simulated system's poles: with the equipment the damping is not
+    modal, so frequencies are |s| / 2 pi and ratios -Re(s) / |s| (undamped shapes)."""
+    if effect is not None and "stationary_excitation" not in effect.spec.kinds:
+        raise ValueError(f"effect {effect.spec.name} is for {', '.join(effect.spec.kinds)} campaigns, "
+                         "not stationary excitation tests")
+    if effect is not None and effect.spec.name not in ("underfloor_equipment", "local_panel_softening"):
         raise NotImplementedError(f"effect {effect.spec.name} is registered but not simulated")
     out = Path(out)
     g = GEOMETRY
@@ -335,13 +672,47 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         parameters = draw_truth_parameters(settings, rng)
         if progress:
             progress("assembling the box model and solving its modes")
-        modal = truth_modes(parameters, settings=settings, model=model)
+        model = build_model(settings) if model is None else model
+        effect_rng = np.random.default_rng([seed, EFFECT_STREAM])  # the effect's own draws
+        name = None if effect is None else effect.spec.name
+        truth_vehicle, mounts = model, ()
+        if name == "local_panel_softening":
+            panel = model.panel(SOFTENING_PANELS[int(effect_rng.integers(len(SOFTENING_PANELS)))])
+            truth_vehicle = soften_panel(model, panel.name, effect.magnitude)
+            if progress:
+                progress(f"{panel.name}: rigidities / {effect.magnitude:g}")
+        elif name == "underfloor_equipment":
+            mounts = (mount_point(draw_equipment_position(effect_rng)),)
+        modal = truth_modes(parameters, settings=settings, model=truth_vehicle, sensors=SENSOR_GRID + mounts,
+                            residual_points=mounts)
+        if mounts:
+            mount_shape = modal.sensor_shapes[-1]
+            modal = replace(modal, sensor_shapes=modal.sensor_shapes[:-1])
         elastic = np.array(modal.kind) == "elastic"
-        modal = replace(modal, damping_ratio=np.where(elastic, rng.uniform(*settings.elastic_damping, elastic.size),
+        drawn = rng.uniform(*settings.elastic_damping, elastic.size - len(mounts))  # as many draws as without
+        modal = replace(modal, damping_ratio=np.where(elastic, np.append(drawn, np.zeros(len(mounts))),
                                                       modal.damping_ratio))
         if progress:
-            progress(f"{modal.frequency_hz.size - 1} modes up to {settings.max_mode_hz:g} Hz and a residual "
-                     f"pseudo-mode at {modal.frequency_hz[-1]:.0f} Hz")
+            progress(f"{modal.frequency_hz.size - 1 - len(mounts)} modes up to {settings.max_mode_hz:g} Hz and "
+                     f"a residual pseudo-mode at {modal.frequency_hz[-1]:.0f} Hz")
+        details = {}
+        if name == "underfloor_equipment":
+            tuned = choose_tuned_mode(modal, mount_shape, effect_rng)
+            detuning = float(effect_rng.uniform(-EQUIPMENT_DETUNING, EQUIPMENT_DETUNING))
+            equipment = UnderfloorEquipment(effect.magnitude * carbody_mass(model), mounts[0].position,
+                                            float(modal.frequency_hz[tuned] * (1 + detuning)))
+            coupled = add_equipment(modal, mount_shape, equipment)
+            details = _equipment_record(coupled, tuned, detuning, carbody_mass(model), modal.damping_ratio,
+                                        settings.truth_band_hz)
+            modal = coupled.modal
+            if progress:
+                split = ", ".join(f"{v:.2f}" for v in details["split_modes"].values())
+                progress(f"underfloor equipment {equipment.mass:.0f} kg at {equipment.position[:2]} m on "
+                         f"{equipment.frequency_hz:.2f} Hz: mode {tuned + 1} at "
+                         f"{details['tuned_mode']['frequency_hz']:.2f} Hz splits into {split} Hz")
+        elif name == "local_panel_softening":
+            unsoftened = truth_modes(parameters, settings=settings, model=model)
+            details = _softening_record(modal, unsoftened, panel, settings.truth_band_hz)
         runs = []
         for k in range(settings.runs):
             run_id = f"run_{k + 1:03d}"
@@ -351,22 +722,22 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
             if progress:
                 progress(f"{run_id}: {settings.run_duration:g} s, force {info['force_rms_n']:.0f} N rms")
         w.commit()
-    listed = modal.listed(settings.truth_band_hz)
-    labels = [f"mode_{k + 1:02d}" for k in listed]  # numbered as in the full model, lowest first
+    listed, labels = _labels(modal, settings.truth_band_hz)
+    f_pole, zeta_pole = modal.poles()
     truth = {
         "format": TRUTH_FORMAT, "kind": "stationary_excitation", "seed": seed, "campaign": out.name,
         "model": "box", "parameters": modal.parameters,
-        "frequencies_hz": {lb: float(modal.frequency_hz[k]) for lb, k in zip(labels, listed)},
-        "damping_ratios": {lb: float(modal.damping_ratio[k]) for lb, k in zip(labels, listed)},
+        "frequencies_hz": {lb: float(f_pole[k]) for lb, k in zip(labels, listed)},
+        "damping_ratios": {lb: float(zeta_pole[k]) for lb, k in zip(labels, listed)},
         "mode_kinds": {lb: modal.kind[k] for lb, k in zip(labels, listed)},
         "mode_shapes": _unit_shapes(modal.sensor_shapes[:, listed]).T.tolist(),  # per mode, in sensor order
         "sensors": [s.name for s in SENSOR_GRID],
         "exciter": {"sensor": EXCITER.name, "position": list(EXCITER.position), "direction": "z",
                     "panel": floor_panel(EXCITER.position[0])},
-        "effect": None if effect is None else effect.to_json(),
-        "modes_kept": {"count": int(modal.frequency_hz.size - 1), "max_hz": settings.max_mode_hz,
+        "effect": None if effect is None else {**effect.to_json(), **details},
+        "modes_kept": {"count": int(np.sum(np.array(modal.kind) != "residual")), "max_hz": settings.max_mode_hz,
                        "residual_pseudo_mode_hz": float(modal.frequency_hz[-1]),
-                       "frequencies_hz": modal.frequency_hz.tolist(), "damping_ratios": modal.damping_ratio.tolist(),
+                       "frequencies_hz": f_pole.tolist(), "damping_ratios": zeta_pole.tolist(),
                        "kinds": list(modal.kind)},
         "settings": asdict(settings),
         "runs": runs,
