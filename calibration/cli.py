@@ -301,6 +301,25 @@ def cmd_validate(args) -> int:
     return EXIT_OK
 
 
+def cmd_diagnose(args) -> int:
+    from .diagnosis.diagnose import diagnose
+    from .diagnosis.plots import plot_diagnosis
+
+    campaign = open_campaign(args.campaign)
+    out_path = Path(args.out)
+    if out_path.is_dir():
+        raise InputError("is a folder; --out takes the JSON file to write", path=out_path)
+    result = diagnose(campaign, progress=_progress(args))
+    result["plots"] = [str(p) for p in plot_diagnosis(result, out_path.with_suffix(""))]
+    result.pop("_plot")
+    write_json_atomic(out_path, result)
+    print(f"cause: {result['cause']}")
+    for line in result["evidence"]["summary"]:
+        print(f"  {line}")
+    print(f"wrote {out_path} and {len(result['plots'])} plots")
+    return EXIT_OK
+
+
 def _validate_excitation(campaign, calibration: dict, args) -> int:
     from .frf_compare import compare_frf, plot_frf_comparison
 
@@ -477,6 +496,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_validate)
+
+    s = sub.add_parser("diagnose", help="find what the model gets wrong on a campaign, name the cause, "
+                       "extend the model and measure the gain")
+    s.add_argument("campaign")
+    s.add_argument("--out", required=True, help="JSON to write (plots go beside it)")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_diagnose)
 
     s = sub.add_parser("export-fmu", help="build an FMI co-simulation FMU of a calibrated model")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")

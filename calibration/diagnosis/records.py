@@ -45,7 +45,7 @@ class RecordSettings:
     band: tuple[float, float] = (0.3, 60.0)  # [Hz]
     rel_width: float = 0.012  # band width relative to its centre frequency
     min_bins: int = 2
-    speed_bin: float = 2.5  # [m/s]
+    speed_bin: float = 1.0  # [m/s]: narrow, so lines fixed in wavenumber stay sharp in each bin
     min_length: float = 80.0  # [s] shortest usable gap-free stretch
 
 
@@ -233,6 +233,7 @@ class Statistics:
     channels: tuple[str, ...]
     edges: np.ndarray
     centres: np.ndarray
+    window: float  # [s]
     S: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
 
@@ -260,7 +261,7 @@ def statistics(records: list[Record], channels: tuple[str, ...],
     inside = (band >= 0) & (band < len(edges) - 1)
     idx, which = np.flatnonzero(inside), band[inside]
     centres = np.sqrt(edges[:-1] * edges[1:])
-    st = Statistics(channels, edges, centres)
+    st = Statistics(channels, edges, centres, settings.window)
     for rec in records:
         n = rec.z.shape[1]
         for a in range(0, n - nw + 1, nw):

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.ndimage
 import scipy.optimize
 
 from ..models.car2d import CarExtras, Output, build_car, frequency_response
@@ -135,7 +136,8 @@ class _Problem:
 
         lo, hi = self.lo[free], self.hi[free]
         sol = scipy.optimize.least_squares(f, x0[free], bounds=(lo, hi), x_scale=np.maximum(hi - lo, 1e-9) / 4,
-                                           diff_step=1e-4, ftol=1e-7, xtol=1e-7, max_nfev=60)
+                                           diff_step=1e-4, ftol=1e-7, xtol=1e-7, max_nfev=60,
+                                           tr_solver="lsmr" if free.sum() > 1 else "exact")
         x = x0.copy()
         x[free] = sol.x
         return x, float(sol.cost)
@@ -201,4 +203,24 @@ def input_coherence(stats: Statistics, lay: Layout, keys, p, extras, sensors) ->
     R = residual_power(G, S, n_in, n_out)
     Suu_inv = np.linalg.pinv(Suu, rcond=1e-8, hermitian=True)
     num = np.einsum("kij,kjl,kil->ki", Sru, Suu_inv, Sru.conj()).real
-    return np.clip(num / np.maximum(R, 1e-300), 0.0, 1.0)
+    raw = np.clip(num / np.maximum(R, 1e-300), 0.0, 1.0)
+    # An estimate from n averages of a residual independent of p inputs reads about p / n;
+    # remove that bias (n = periodogram bins in the band x windows).
+    seconds = sum(stats.seconds[k] for k in keys)
+    bias = np.minimum(n_in / np.maximum(np.diff(stats.edges) * seconds, 1.0), 0.99)[:, None]
+    return np.clip((raw - bias) / (1 - bias), 0.0, 1.0)
+
+
+def input_noise_power(stats: Statistics, lay: Layout, keys, p, extras, sensors) -> np.ndarray:
+    """Residual power per band and response that the rail input's own measurement noise
+    puts into a perfect model's prediction (errors in variables), (n_band, n_out).
+
+    The consistency channel is the difference of two wheelsets' axle-box means, so on
+    round wheels its power is twice one mean's noise; a running median over bands keeps a
+    wheel line out of the estimate. The four inputs are taken as carrying that noise
+    independently (inputs 3 and 4 carry 1's and 2's, delayed)."""
+    S, _ = stats.total(lambda k: k in keys)
+    i = stats.channels.index("consistency")
+    noise = scipy.ndimage.median_filter(S[:, i, i].real / 2, size=15, mode="nearest")
+    G = transfer(p, extras, sensors, lay, stats.centres)
+    return np.sum(np.abs(G) ** 2, axis=2) * noise[:, None]

@@ -51,6 +51,8 @@ class CarExtras:
         frequency k_r / (2 pi c_o) is ``reservoir_corner_hz``. The node between them carries
         ``node_mass`` (a massless node would make the mass matrix singular; 1 kg puts the
         node's own pole near -c_o / 1 kg, far above any band of interest).
+    bodies, elements : further bodies and spring-dampers added as they are (e.g. equipment
+        hung resiliently on a frame).
     track_stiffness : [N/m] per wheelset: wheelsets are free bodies on the track (rail pads,
         sleepers, ballast) of this stiffness, damping ratio ``track_damping_ratio`` with the
         wheelset plus ``track_mass`` [kg] of rail and sleepers moving with it; the rail
@@ -68,6 +70,8 @@ class CarExtras:
     track_stiffness: float | None = None
     track_damping_ratio: float = 0.2
     track_mass: float = 250.0
+    bodies: tuple[Body, ...] = ()
+    elements: tuple[SpringDamper, ...] = ()
 
 
 def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
@@ -112,7 +116,7 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
             elements.append(SpringDamper(f"contact{j + 1}", below, Attachment(input=RAIL_INPUTS[j]),
                                          k_contact, c_contact))
         elements.append(SpringDamper(f"primary{j + 1}", Attachment(bogie, xw[j]), below, p.k_p, p.c_p))
-    return assemble(bodies, elements, list(RAIL_INPUTS))
+    return assemble(bodies + list(ex.bodies), elements + list(ex.elements), list(RAIL_INPUTS))
 
 
 # --------------------------------------------------------------------------- modes

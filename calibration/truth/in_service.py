@@ -36,7 +36,7 @@ import scipy.signal
 
 from ..data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor, write_json_atomic
 from ..data.units import STANDARD_GRAVITY
-from ..models.assembly import Assembly
+from ..models.assembly import Assembly, Attachment, Body, SpringDamper
 from ..models.car2d import (CarExtras, Output, build_car, damped_modes, frequencies_by_label, state_space,
                             undamped_modes, wheelset_positions)
 from ..models.parameters import CarParameters
@@ -175,6 +175,13 @@ def truth_car(p: CarParameters, sensors: tuple[Sensor, ...], effect: EffectChoic
         oor = (j, order, mag, phase)
         details = {"wheelset": j + 1, "order": order, "radius_amplitude_m": mag,
                    "wavelength_m": float(2 * np.pi * WHEEL_RADIUS / order)}
+    elif name == "bogie_equipment":
+        f_m, zeta, x = float(rng.uniform(20.0, 30.0)), 0.04, p.L_v + 0.6
+        k = mag * (2 * np.pi * f_m) ** 2
+        extras = CarExtras(bodies=(Body("equipment", mag, x),),
+                           elements=(SpringDamper("equipment_mount", Attachment("bogie1", x), Attachment("equipment", x),
+                                                  k, 2 * zeta * np.sqrt(k * mag)),))
+        details = {"mass_kg": mag, "mount_hz": f_m, "damping_ratio": zeta, "x_m": x}
     elif name is not None:
         raise NotImplementedError(f"effect {name} is not simulated in in-service campaigns")
     return TruthCar(p, build_car(p, extras=extras), sensor_x, oor, details)

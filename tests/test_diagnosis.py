@@ -1,0 +1,230 @@
+"""Residual diagnosis (issue 7): the model extensions obey their physics, the residual
+statistics are exact quadratic forms, and on synthetic campaigns with a hidden effect the
+diagnosis names it (at both ends of its magnitude range), answers ``none`` on effect-free
+data and ``unexplained`` for an effect outside the catalogue.
+
+The campaign seeds here (61-80) were never used while the diagnosis was developed and its
+thresholds set (seeds 3, 5, 6, 7 were; so were 21-38 and 41-58, which earlier versions of
+these tests used: they showed the coherence estimator's bias, too coarse wavenumber knots
+and that held-out runs at the training runs' speeds cannot test a track resonance).
+Track flexibility is a claim about speeds, so its campaigns have four journeys instead
+of three (more speeds).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from calibration.cli import main
+from calibration.data.campaign import open_campaign
+from calibration.diagnosis.diagnose import diagnose
+from calibration.diagnosis.records import Record, RecordSettings, band_edges
+from calibration.diagnosis.response import channel_power, residual_power
+from calibration.diagnosis.track import TrackSettings, fit_track, transmissibility2
+from calibration.diagnosis.wheels import fit_polygon
+from calibration.models.assembly import beam_bending_shape
+from calibration.models.car2d import (CarExtras, Output, build_car, damped_modes, frequency_response, state_space,
+                                      undamped_modes)
+from calibration.models.simulate import simulate
+from calibration.models.vehicles import INTERCITY_TRAILER
+from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, parse_effect
+from calibration.truth.in_service import InServiceSettings, synth_in_service
+from calibration.truth.track import LineSpec
+
+P = INTERCITY_TRAILER
+
+
+# ------------------------------------------------------------------ model extensions
+def test_beam_bending_shape_is_a_free_free_mode_with_a_quarter_of_the_mass():
+    L = 23.0
+    phi = beam_bending_shape(L)
+    x = np.linspace(-L / 2, L / 2, 20001)
+    y = np.array([phi(t) for t in x])
+    assert np.trapezoid(y * y, x) / L == pytest.approx(0.25, rel=1e-6)
+    assert abs(np.trapezoid(y, x)) < 1e-6 * L  # orthogonal to bounce
+    assert abs(np.trapezoid(y * x, x)) < 1e-6 * L * L  # and to pitch
+    assert phi(L / 2) == pytest.approx(1.0) and phi(-L / 2) == pytest.approx(1.0)
+
+
+def test_flexible_carbody_adds_its_bending_mode_and_leaves_the_rigid_ones_nearly_alone():
+    rigid = {m.label: m.frequency_hz for m in undamped_modes(build_car(P))}
+    flex = undamped_modes(build_car(P, extras=CarExtras(bending_hz=9.0)))
+    bending = [m for m in flex if m.label == "carbody_bending"]
+    assert len(bending) == 1 and bending[0].frequency_hz == pytest.approx(9.0, rel=0.02)
+    assert {m.label: m.frequency_hz for m in flex}["carbody_bounce"] == pytest.approx(rigid["carbody_bounce"], rel=0.01)
+
+
+def test_reservoir_branch_stiffens_the_air_spring_between_its_static_and_dynamic_limits():
+    # carbody bounce on the air springs: the reservoir adds nothing statically and k_r at high
+    # frequency, so the bounce frequency lies between the two limits' closed forms
+    base = build_car(P)
+    with_res = build_car(P, extras=CarExtras(reservoir_ratio=1.0, reservoir_corner_hz=2.0))
+    f0 = {m.label: m.frequency_hz for m in undamped_modes(base)}["carbody_bounce"]
+    stiff = build_car(P.replace(k_s=2 * P.k_s))
+    f_inf = {m.label: m.frequency_hz for m in undamped_modes(stiff)}["carbody_bounce"]
+    f_res = min(m.frequency_hz for m in damped_modes(with_res) if m.label == "carbody_bounce"
+                and m.damped_frequency_hz is not None)
+    assert f0 < f_res < f_inf
+
+
+def test_cog_offset_couples_bounce_and_pitch():
+    asm = build_car(P, extras=CarExtras(cog_offset=1.0))
+    i, j = asm.dof("carbody_z"), asm.dof("carbody_pitch")
+    assert abs(asm.K[i, j]) > 0.1 * P.k_s and build_car(P).K[i, j] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_frequency_response_of_an_extended_car_matches_the_exact_time_response():
+    ex = CarExtras(bending_hz=8.0, reservoir_ratio=0.8, track_stiffness=60e6)
+    asm = build_car(P, extras=ex)
+    outs = [Output("b", "acceleration", "bogie1", P.L_v + 0.5), Output("g", "pitch_rate", "bogie1"),
+            Output("c", "acceleration", "carbody", 0.0)]
+    f0 = 9.0
+    dt, t = 1e-3, np.arange(0, 30, 1e-3)
+    w = np.zeros((t.size, 8))
+    w[:, 1] = np.sin(2 * np.pi * f0 * t)
+    w[:, 5] = 2 * np.pi * f0 * np.cos(2 * np.pi * f0 * t)
+    y = simulate(state_space(asm, outs), w, dt)[-10000:]
+    tt = t[-10000:]
+    amp = np.abs(2 / tt.size * (y * np.exp(-2j * np.pi * f0 * tt)[:, None]).sum(axis=0))
+    H = frequency_response(asm, outs, np.array([f0]))[0, :, 1]
+    assert np.allclose(amp, np.abs(H), rtol=2e-3)
+
+
+def test_residual_power_is_the_residuals_mean_square_band_by_band():
+    rng = np.random.default_rng(0)
+    n, n_in, n_out = 4096, 4, 3
+    z = rng.normal(size=(n_in + n_out, n))
+    X = np.fft.rfft(z, axis=1)[:, 1:50] * np.sqrt(2) / n
+    G = rng.normal(size=(49, n_out, n_in)) + 1j * rng.normal(size=(49, n_out, n_in))
+    S = np.einsum("if,jf->fij", X, X.conj())
+    r = X[n_in:] - np.einsum("fij,jf->if", G, X[:n_in])
+    assert np.allclose(residual_power(G, S, n_in, n_out), (np.abs(r) ** 2).T, rtol=1e-10, atol=1e-14)
+    assert np.allclose(channel_power(S, n_in, n_out), (np.abs(X[n_in:]) ** 2).T)
+
+
+def test_band_edges_are_contiguous_and_at_least_the_minimum_width():
+    s = RecordSettings()
+    e = band_edges(s)
+    w = np.diff(e)
+    assert e[0] == s.band[0] and e[-1] >= s.band[1]
+    assert np.all(w >= s.min_bins / s.window - 1e-12) and np.all(w >= s.rel_width * e[:-1] - 1e-12)
+
+
+def test_track_fit_recovers_a_resonance_from_spectra_at_several_speeds():
+    from calibration.diagnosis.records import Statistics
+
+    s = RecordSettings()
+    edges = band_edges(s)
+    f = np.sqrt(edges[1:] * edges[:-1])
+    bw = np.diff(edges)
+    st = Statistics(("axle1_mean", "axle2_mean"), edges, f, s.window)
+    for vb in (20.0, 27.5, 35.0, 42.5):
+        v = vb + 1.25
+        kappa = f / v
+        Sz = 1e-7 / (kappa ** 2 + 0.02) / (kappa ** 2 + 0.8)  # a smooth level spectrum [m^2 m]
+        P = (2 * np.pi * f) ** 4 * Sz / v * transmissibility2(f, 31.0, 0.15)
+        S = np.zeros((f.size, 2, 2), complex)
+        S[:, 0, 0] = S[:, 1, 1] = P * bw * 600.0
+        st.S[("run", vb)] = S
+        st.seconds[("run", vb)] = 600.0
+    fit = fit_track(st, set(st.S), True, TrackSettings())
+    assert fit.f_t == pytest.approx(31.0, rel=0.02) and fit.zeta == pytest.approx(0.15, rel=0.1)
+    assert fit.error_train < 0.01 * fit_track(st, set(st.S), False).error_train
+
+
+def test_wheel_polygon_fit_recovers_wavelength_amplitude_and_wheelset():
+    rng = np.random.default_rng(1)
+    fs, T, v = 200.0, 400.0, 30.0
+    t = np.arange(0, T, 1 / fs)
+    d = v * t
+    lam, a_curv = 1.32, 4e-3  # [m], [1/m]
+    line = a_curv * np.cos(2 * np.pi * d / lam + 0.3)
+    noise = rng.normal(0, 0.1, (3, t.size))
+    rows = {"consistency": 0, "axle1_mean": 1, "axle2_mean": 2}
+    z = np.vstack([-line * v * v + noise[0], line * v * v + noise[1], noise[2]])  # carried by wheelset 1
+    rec = Record("r1", 0.0, np.full(t.size, v), d, z)
+    poly = fit_polygon([rec], rows, {"r1"})
+    assert poly.wavelength == pytest.approx(lam, rel=0.005)
+    assert poly.curvature_amplitude == pytest.approx(a_curv, rel=0.05)
+    assert poly.wheelset == 1
+    assert poly.radius_amplitude == pytest.approx(a_curv / (2 * np.pi / lam) ** 2, rel=0.05)
+
+
+def test_effect_magnitudes_outside_their_range_are_refused():
+    from calibration.data.errors import InputError
+
+    with pytest.raises(InputError, match="outside its range"):
+        parse_effect("cog_offset=9", "in_service")
+    with pytest.raises(InputError, match="unknown effect"):
+        parse_effect("underfloor_equipment", "in_service")
+    with pytest.raises(InputError, match="unknown effect"):
+        parse_effect("bogie_equipment", "in_service")  # outside the catalogue: not offered
+
+
+# ------------------------------------------------------------ hidden effects, named
+IN_SERVICE = sorted(n for n, s in EFFECTS.items() if "in_service" in s.kinds)
+CASES = [(name, end) for name in IN_SERVICE for end in (0, 1)]
+SEEDS = {case: 61 + i for i, case in enumerate(CASES)}
+
+
+def _campaign(root, seed: int, effect: EffectChoice | None, journeys: int = 3):
+    settings = InServiceSettings(journeys=journeys, line=LineSpec(length=8_000.0), carbody_sensors=True)
+    synth_in_service(root, seed=seed, settings=settings, effect=effect, fmt="parquet")
+    return root
+
+
+@pytest.mark.parametrize("name,end", CASES, ids=[f"{n}-{'low' if e == 0 else 'high'}" for n, e in CASES])
+def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
+    spec = EFFECTS[name]
+    magnitude = spec.magnitude_range[end]
+    root = _campaign(tmp_path / "c", SEEDS[(name, end)], EffectChoice(spec, magnitude),
+                     journeys=4 if name == "track_flexibility" else 3)
+    result = diagnose(open_campaign(root))
+    assert result["cause"] == name, result["evidence"]["summary"]
+    assert result["gain"]["reduction"] >= 0.3
+    p = result["extension"]["parameters"]
+    if name == "carbody_bending":
+        assert p["bending_hz"] == pytest.approx(magnitude, rel=0.03)
+    elif name == "sensor_offset":
+        assert abs(p["dx"]) == pytest.approx(magnitude, abs=0.1)
+    elif name == "cog_offset":
+        assert abs(p["cog_offset"]) == pytest.approx(magnitude, abs=0.15)
+    elif name == "wheel_out_of_round":
+        truth = json.loads((tmp_path / "c.truth.json").read_text())["effect"]["details"]
+        assert p["wheelset"] == truth["wheelset"]
+        assert p["wavelength_m"] == pytest.approx(truth["wavelength_m"], rel=0.01)
+
+
+@pytest.mark.parametrize("seed", [75, 76])
+def test_effect_free_campaign_is_diagnosed_none(tmp_path, seed):
+    result = diagnose(open_campaign(_campaign(tmp_path / "c", seed, None)))
+    assert result["cause"] == "none", result["evidence"]["summary"]
+    assert result["extension"] is None and result["gain"] is None
+
+
+def test_effect_outside_the_catalogue_is_unexplained_with_its_evidence(tmp_path):
+    spec = UNCATALOGUED["bogie_equipment"]
+    result = diagnose(open_campaign(_campaign(tmp_path / "c", 77, EffectChoice(spec, 400.0))))
+    assert result["cause"] == "unexplained", result["evidence"]["summary"]
+    peaks = [p["frequency_hz"] for p in result["evidence"]["channels"]["bogie1_acc_z"]["peaks"]]
+    truth = json.loads((tmp_path / "c.truth.json").read_text())["effect"]["details"]["mount_hz"]
+    assert any(abs(f / truth - 1) < 0.1 for f in peaks), peaks
+
+
+def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_path, capsys):
+    root = _campaign(tmp_path / "c", 78, EffectChoice(EFFECTS["cog_offset"], 1.2))
+    out = tmp_path / "diag.json"
+    assert main(["diagnose", str(root), "--out", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert {"cause", "evidence", "extension", "gain"} <= set(result)
+    assert result["cause"] == "cog_offset"
+    assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])
+    assert "cause: cog_offset" in capsys.readouterr().out
+
+
+def test_diagnose_refuses_a_stationary_campaign_and_a_missing_folder(tmp_path, capsys):
+    assert main(["diagnose", str(tmp_path / "nothing"), "--out", str(tmp_path / "d.json")]) == 2
+    assert "not a campaign folder" in capsys.readouterr().err
+    assert not (tmp_path / "d.json").exists()
