@@ -9,8 +9,11 @@ Today the pipeline is:
   its modes (H1, p-LSCF), calibrate the box model by the seed's particle swarm and the
   CasADi refinement, compare measured and model FRFs;
 
-and compare everything with the truth that generated the data. Diagnosis, FMU export and
-the exudyn cross-check join as they are built.
+then diagnose what the calibrated car still gets wrong on the campaign (``railcal
+diagnose``), export both FMUs and cross-check the car in exudyn; and compare everything
+with the truth that generated the data. The demo campaign carries carbody floor
+accelerometers (above both bogies and at the centre) besides the seed's bogie and
+axle-box sensors; it hides no effect, so the diagnosis should answer ``none``.
 """
 from __future__ import annotations
 
@@ -35,7 +38,7 @@ from .truth.track import LineSpec
 from .validation import plot_validation, validate
 
 DEMO_SEED = 7
-DEMO_SETTINGS = InServiceSettings(journeys=10, line=LineSpec(length=40_000.0))
+DEMO_SETTINGS = InServiceSettings(journeys=10, line=LineSpec(length=40_000.0), carbody_sensors=True)
 
 
 def run_demo(out: Path, *, progress=None) -> Path:
@@ -48,9 +51,9 @@ def run_demo(out: Path, *, progress=None) -> Path:
         elif stale.exists():
             stale.unlink()
     say = progress or (lambda m: None)
-    say(f"1/10 synthesising {DEMO_SETTINGS.journeys} journeys over a {DEMO_SETTINGS.line.length / 1000:g} km line")
+    say(f"1/11 synthesising {DEMO_SETTINGS.journeys} journeys over a {DEMO_SETTINGS.line.length / 1000:g} km line")
     truth = synth_in_service(campaign_dir, seed=DEMO_SEED, settings=DEMO_SETTINGS, progress=progress)
-    say("2/10 identifying modes (segmental FDD and input-output)")
+    say("2/11 identifying modes (segmental FDD and input-output)")
     campaign = open_campaign(campaign_dir)
     result = identify_in_service(campaign, progress=progress)
     ident = result.to_json()
@@ -59,46 +62,77 @@ def run_demo(out: Path, *, progress=None) -> Path:
     spectra = plot_spectra(result, out / "spectra.png")
     ident["plot_spectra"] = None if spectra is None else str(spectra)
     write_json_atomic(out / "identification.json", ident)
-    say("3/10 calibrating the 2D car to the identified modes (Cross-Entropy, CasADi refinement)")
+    say("3/11 calibrating the 2D car to the identified modes (Cross-Entropy, CasADi refinement)")
     targets = {m.label: m.frequency_hz for m in result.modes}
     calibration = calibrate_car(targets, search_from_priors(campaign.meta.priors), base=prior_parameters(campaign),
                                 runs=3, seed=DEMO_SEED, refine_result=True, sigma_f=mode_uncertainties(result.modes))
     write_json_atomic(out / "calibration.json", calibration.to_json())
-    say("4/10 validating over the track recording")
+    say("4/11 validating over the track recording")
     validation = validate(campaign, calibration.parameters)
     plot_validation(validation, out / "validation.png")
     write_json_atomic(out / "validation.json", validation.to_json())
+    say("5/11 diagnosing what the model gets wrong (residuals, hypotheses, held-out gain)")
+    diagnosis = _diagnose(out, campaign, truth, progress)
     shaker = _shaker(out, say, progress)
-    say("8/10 exporting FMUs of the calibrated car and box-type vehicle, running them in fmpy")
+    say("9/11 exporting FMUs of the calibrated car and box-type vehicle, running them in fmpy")
     fmus = _fmus(out, campaign, calibration.parameters, shaker["calibration_json"])
-    say("9/10 cross-checking the calibrated car in exudyn against railcal's model and its FMU")
+    say("10/11 cross-checking the calibrated car in exudyn against railcal's model and its FMU")
     from reference_models.crosscheck import crosscheck_car
 
     track = campaign.tracks()[0]
     xcheck = crosscheck_car(calibration.parameters, track.distance, track.level, speed=40.0, duration=5.0,
                             plot=out / "crosscheck.png")
     write_json_atomic(out / "crosscheck.json", xcheck)
-    say("10/10 writing the report")
+    say("11/11 writing the report")
     report = out / "report.md"
     tmp = out / ".report.md.partial"
     tmp.write_text(_report(truth, result, png.name, calibration, validation) + _shaker_report(shaker)
-                   + _fmu_report(fmus) + _crosscheck_report(xcheck))
+                   + _diagnosis_report(diagnosis) + _fmu_report(fmus) + _crosscheck_report(xcheck))
     os.replace(tmp, report)
     return report
+
+
+def _diagnose(out: Path, campaign, truth: dict, progress) -> dict:
+    import time
+
+    from .diagnosis.diagnose import diagnose
+    from .diagnosis.plots import plot_diagnosis
+
+    t0 = time.perf_counter()
+    result = diagnose(campaign, progress=progress)
+    result["wall_time_s"] = time.perf_counter() - t0
+    result["plots"] = [p.name for p in plot_diagnosis(result, out / "diagnosis")]
+    result.pop("_plot")
+    result["truth_effect"] = truth["effect"]
+    write_json_atomic(out / "diagnosis.json", result)
+    return result
+
+
+def _diagnosis_report(d: dict) -> str:
+    truth = d["truth_effect"]["name"] if d["truth_effect"] else "none"
+    lines = ["## Diagnosis (`railcal diagnose`)", "",
+             f"Cause found: **{d['cause']}** (hidden in the campaign: {truth}); {d['wall_time_s']:.0f} s. "
+             f"Training runs {', '.join(d['split']['training_runs'])}; held out "
+             f"{', '.join(d['split']['heldout_runs'])}.", ""]
+    lines += [f"- {s}" for s in d["evidence"]["summary"]]
+    lines += ["", "| hypothesis | held-out error reduction (best channel) | channel |", "|---|---|---|"]
+    lines += [f"| {h['name']} | {h['gain']:.1%} | {h['best_channel']} |" for h in d["hypotheses"]]
+    lines += ["", *[f"![{p}]({p})" for p in d["plots"]], ""]
+    return "\n".join(lines)
 
 
 def _shaker(out: Path, say, progress) -> dict:
     """The stationary excitation test of the box carbody, from synthesis to FRF comparison."""
     root = out / "shaker"
-    say("5/10 synthesising a stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
+    say("6/11 synthesising a stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
     truth = synth_excitation(root, seed=DEMO_SEED)
     campaign = open_campaign(root)
-    say("6/10 identifying its modes (H1, p-LSCF) and calibrating the box model (particle swarm, CasADi refinement)")
+    say("7/11 identifying its modes (H1, p-LSCF) and calibrating the box model (particle swarm, CasADi refinement)")
     calibration, ident = calibrate_box_campaign(campaign, seed=DEMO_SEED, progress=progress)
     write_identification(ident, out / "shaker_identification.json")
     cal_json = calibration.to_json(ident)
     write_json_atomic(out / "shaker_calibration.json", cal_json)
-    say("7/10 comparing measured and model FRFs")
+    say("8/11 comparing measured and model FRFs")
     frf = compare_frf(campaign, cal_json, ident)
     plot_frf_comparison(frf, out / "shaker_frf.png")
     write_json_atomic(out / "shaker_frf.json", frf.to_json())

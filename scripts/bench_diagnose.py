@@ -8,12 +8,13 @@ Prints the confusion matrix, the right-cause rate per effect, the false-alarm ra
 effect-free data, the held-out error reduction where the cause is right, and the wall
 time per diagnosis; writes every case to ``--out``.
 
-    python scripts/bench_diagnose.py [--seeds 10] [--journeys 4] [--length-km 10] [--jobs 2]
+    python scripts/bench_diagnose.py [--seeds 10] [--journeys 4] [--length-km 8] [--jobs 2]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -21,7 +22,10 @@ import time
 from multiprocessing import Pool
 from pathlib import Path
 
-import numpy as np
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one thread per worker
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -60,7 +64,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--first-seed", type=int, default=1000)
     ap.add_argument("--journeys", type=int, default=4)
-    ap.add_argument("--length-km", type=float, default=10.0)
+    ap.add_argument("--length-km", type=float, default=8.0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="bench_diagnose.json")
     args = ap.parse_args(argv)
@@ -92,7 +96,6 @@ def main(argv=None) -> int:
     expected = {**{n: n for n in IN_SERVICE}, "none": "none", OUTSIDE: "unexplained"}
     print(f"\nconfusion matrix ({args.seeds} campaigns per row, {args.journeys} journeys x {args.length_km:g} km, "
           f"carbody sensors; rows: truth, columns: diagnosis)")
-    width = max(len(a) for a in answers) + 1
     print(" " * 22 + "".join(f"{a[:9]:>10s}" for a in answers))
     for t in truths:
         row = [sum(1 for r in results if r["effect"] == t and r["diagnosed"] == a) for a in answers]

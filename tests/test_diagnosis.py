@@ -21,7 +21,7 @@ from calibration.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.diagnosis.diagnose import diagnose
 from calibration.diagnosis.records import Record, RecordSettings, band_edges
-from calibration.diagnosis.response import channel_power, residual_power
+from calibration.diagnosis.response import channel_power, residual_cross_spectrum, residual_power
 from calibration.diagnosis.track import TrackSettings, fit_track, transmissibility2
 from calibration.diagnosis.wheels import fit_polygon
 from calibration.models.assembly import beam_bending_shape
@@ -102,6 +102,8 @@ def test_residual_power_is_the_residuals_mean_square_band_by_band():
     r = X[n_in:] - np.einsum("fij,jf->if", G, X[:n_in])
     assert np.allclose(residual_power(G, S, n_in, n_out), (np.abs(r) ** 2).T, rtol=1e-10, atol=1e-14)
     assert np.allclose(channel_power(S, n_in, n_out), (np.abs(X[n_in:]) ** 2).T)
+    cross = residual_cross_spectrum(G, S, n_in, n_out)
+    assert np.allclose(cross, np.einsum("if,jf->fij", r, r.conj()), rtol=1e-10, atol=1e-14)
 
 
 def test_band_edges_are_contiguous_and_at_least_the_minimum_width():
@@ -224,7 +226,7 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
     assert "cause: cog_offset" in capsys.readouterr().out
 
 
-def test_diagnose_refuses_a_stationary_campaign_and_a_missing_folder(tmp_path, capsys):
+def test_diagnose_refuses_a_missing_campaign_without_writing(tmp_path, capsys):
     assert main(["diagnose", str(tmp_path / "nothing"), "--out", str(tmp_path / "d.json")]) == 2
     assert "not a campaign folder" in capsys.readouterr().err
     assert not (tmp_path / "d.json").exists()

@@ -44,7 +44,8 @@ from ..identification.in_service import prior_parameters
 from ..models.car2d import CarExtras
 from .extensions import EXTENSIONS, Extension
 from .records import Layout, RecordSettings, Statistics, layout, read_records, statistics
-from .response import FIT_NAMES, fit_response, input_coherence, input_noise_power, response_nrp
+from .response import (FIT_NAMES, fit_response, input_coherence, input_noise_power, residual_cross_spectrum,
+                       response_nrp, transfer)
 from .track import TrackSettings, fit_track, track_cross_validation, track_error
 from .wheels import WheelSettings, fit_polygon, line_spectrum, polygon_error
 
@@ -179,6 +180,15 @@ def _evidence(ctx: _Context, base_fit) -> dict:
     masks = _signal_bands(Ptest, bw, s.signal_factor) & clean
     coh = input_coherence(ctx.stats, lay, all_keys, base_fit.parameters, base_fit.extras, base_fit.sensors)
     nrp_test = _response_errors(ctx, base_fit, masks)
+    S_all, _ = ctx.stats.total()
+    G = transfer(base_fit.parameters, base_fit.extras, base_fit.sensors, lay, f)
+    Rx = residual_cross_spectrum(G, S_all, 4, len(lay.responses))
+    pairs = {}  # residual phase between the ends of the car: bogie-end carbody sensors (front, rear)
+    ends = [c for c, o in enumerate(lay.responses) if o.body == "carbody" and o.kind == "acceleration"]
+    if len(ends) >= 2:
+        xs = [lay.responses[c].x for c in ends]
+        front, rear = ends[int(np.argmax(xs))], ends[int(np.argmin(xs))]
+        pairs = {"front": lay.response_names[front], "rear": lay.response_names[rear], "i": front, "j": rear}
     channels = {}
     for c, name in enumerate(lay.response_names):
         m = masks[:, c]
@@ -187,8 +197,15 @@ def _evidence(ctx: _Context, base_fit) -> dict:
         share = R[:, c] / np.maximum(P[:, c], 1e-300)
         peaks = []
         for f0, rr, sh in _peaks(f, ratio, share, (0.5, 40.0), s.peak_alarm):
-            peaks.append({"frequency_hz": f0, "over_floor": rr, "residual_share": sh,
-                          **_speed_scaling(ctx, base_fit, c, f0)})
+            peak = {"frequency_hz": f0, "over_floor": rr, "residual_share": sh, **_speed_scaling(ctx, base_fit, c, f0)}
+            if pairs:
+                k = int(np.argmin(np.abs(f - f0)))
+                x = Rx[k, pairs["i"], pairs["j"]]
+                peak["front_rear_residual"] = {
+                    "phase_deg": float(np.degrees(np.angle(x))),
+                    "coherence": float(abs(x) ** 2 / max(Rx[k, pairs["i"], pairs["i"]].real
+                                                          * Rx[k, pairs["j"], pairs["j"]].real, 1e-300))}
+            peaks.append(peak)
         flat = rpsd[m] if m.any() else rpsd
         channels[name] = {
             "heldout_nrp": float(nrp_test[c]),
@@ -304,6 +321,10 @@ def _alarms(ev: dict, s: DiagnoseSettings) -> list[str]:
             if p["over_floor"] >= s.peak_alarm and p["residual_share"] > 0.3:
                 kind = p.get("scaling", "unknown").replace("_", " ")
                 extra = f", wavelength {p['wavelength_m']:.2f} m" if "wavelength_m" in p else ""
+                fr = p.get("front_rear_residual")
+                if fr and fr["coherence"] > 0.5:
+                    extra += (", car ends in phase" if abs(fr["phase_deg"]) < 45 else
+                              ", car ends in anti-phase" if abs(fr["phase_deg"]) > 135 else "")
                 out.append(f"{name}: residual peak at {p['frequency_hz']:.2f} Hz, {p['over_floor']:.1f}x its floor "
                            f"({kind}{extra})")
     w = ev["wheel_line"]

@@ -67,6 +67,15 @@ def residual_power(G: np.ndarray, S: np.ndarray, n_in: int, n_out: int) -> np.nd
     return np.maximum(Syy - 2 * GSuy + GSG, 0.0)
 
 
+def residual_cross_spectrum(G: np.ndarray, S: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
+    """Residual cross-spectra between response channels per band, (n_band, n_out, n_out)."""
+    Suu = S[:, :n_in, :n_in]
+    Syu = S[:, n_in:n_in + n_out, :n_in]
+    Syy = S[:, n_in:n_in + n_out, n_in:n_in + n_out]
+    GSuy = np.einsum("kij,klj->kil", G, Syu.conj())  # G S_uy
+    return Syy - GSuy - GSuy.conj().transpose(0, 2, 1) + np.einsum("kij,kjl,kml->kim", G, Suu, G.conj())
+
+
 def channel_power(S: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
     return np.einsum("kii->ki", S[:, n_in:n_in + n_out, n_in:n_in + n_out]).real
 
