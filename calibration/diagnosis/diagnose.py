@@ -46,7 +46,7 @@ from .extensions import EXTENSIONS, Extension
 from .records import Layout, RecordSettings, Statistics, layout, read_records, statistics
 from .response import (FIT_NAMES, fit_response, input_coherence, input_noise_power, residual_cross_spectrum,
                        response_nrp, transfer)
-from .track import TrackSettings, fit_track, track_cross_validation, track_error
+from .track import TrackSettings, fit_track, speed_folds, track_cross_validation, track_error
 from .wheels import WheelSettings, fit_polygon, line_spectrum, polygon_error
 
 FORMAT = "railcal-diagnosis/1"
@@ -222,9 +222,15 @@ def _evidence(ctx: _Context, base_fit) -> dict:
     asym = float(max(a1, a2) / max(min(a1, a2), 1e-300))
     wheel = {"wavelength_m": float(1 / spec.wavenumber[i]), "over_floor": line_ratio, "axle_asymmetry": asym,
              "stronger_on_wheelset": 1 if a1 >= a2 else 2}
-    tb = fit_track(ctx.stats, _keys(ctx.stats, ctx.train), False, s.track)
-    track = {"collapse_misfit_train": tb.error_train,
-             "collapse_misfit_heldout": track_error(ctx.stats, _keys(ctx.stats, ctx.test), tb, s.track).tolist(),
+    # the rigid rail's collapse: fitted at some speeds, how well does it predict the others?
+    # (misfits less the spectra's sampling variance, so the two are comparable)
+    fitted, held = [], []
+    for fit_keys, test_keys in speed_folds(ctx.stats, set(ctx.stats.S)):
+        tb = fit_track(ctx.stats, fit_keys, False, s.track)
+        fitted.append(float(np.mean(track_error(ctx.stats, fit_keys, tb, s.track))))
+        held.append(track_error(ctx.stats, test_keys, tb, s.track))
+    track = {"collapse_misfit_fitted_speeds": float(np.mean(fitted)) if fitted else None,
+             "collapse_misfit_other_speeds": np.mean(held, axis=0).tolist() if held else None,
              "speeds_m_s": [min(ctx.stats.speed_bins), max(ctx.stats.speed_bins) + s.records.speed_bin]}
     return {"channels": channels, "wheel_line": wheel, "track": track, "masks": masks,
             "parameters_at_bounds": list(base_fit.at_bounds)}
@@ -247,8 +253,9 @@ def _scores(ev: dict, lay: Layout, s: DiagnoseSettings) -> dict:
         "cog_offset": max([ch[n]["low_band_coherence"] for n in carbody] + [0.0]),
         "airspring_reservoir": max([coh[n] for n in carbody] + [0.0]) + 0.5 * bool(at_bounds & {"k_s", "c_s"}),
         "wheel_out_of_round": (w["over_floor"] / s.line_alarm) * (w["axle_asymmetry"] >= s.asymmetry),
-        "track_flexibility": max(ev["track"]["collapse_misfit_heldout"]) / max(ev["track"]["collapse_misfit_train"],
-                                                                                 1e-12) - 1.0,
+        "track_flexibility": (max(ev["track"]["collapse_misfit_other_speeds"])
+                              / max(ev["track"]["collapse_misfit_fitted_speeds"], 1e-12) - 1.0)
+        if ev["track"]["collapse_misfit_fitted_speeds"] else 0.0,
     }
     return {k: float(max(v, 0.0)) for k, v in sc.items()}
 
