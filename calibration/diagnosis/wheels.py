@@ -100,24 +100,31 @@ class WheelPolygon:
                 "radius_amplitude_m": self.radius_amplitude, "line_over_floor": self.line_ratio}
 
 
-def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettings()) -> WheelPolygon:
+def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettings(), pad: int = 16) -> WheelPolygon:
     spec = line_spectrum(records, rows, train_runs, settings)
     i, ratio = spec.strongest(settings)
-    # refine the wavenumber: maximise the mean line amplitude over training windows
-    k0 = spec.wavenumber[i]
-    grid = k0 + np.linspace(-1, 1, 41) * (spec.wavenumber[1] - spec.wavenumber[0])
-    best = None
-    for k in grid:
-        amps = [abs(np.mean(x * np.exp(-2j * np.pi * k * s))) * 2
-                for _, s, x in _windows([r for r in records if r.run_id in train_runs], rows["consistency"], settings)]
-        a = float(np.sqrt(np.mean(np.square(amps)))) if amps else 0.0
-        if best is None or a > best[1]:
-            best = (k, a)
-    k, amp = best
+    # refine the wavenumber on the windows' mean power, zero-padded ``pad`` times (parabolic
+    # interpolation of the log power at the peak), then the amplitude at it per window
+    n = int(round(settings.window / settings.ds))
+    win = np.hanning(n)
+    k_fine = np.fft.rfftfreq(pad * n, settings.ds)
+    lo, hi = np.searchsorted(k_fine, [spec.wavenumber[max(i - 1, 0)], spec.wavenumber[i + 1]])
+    power = np.zeros(hi - lo)
+    chosen = [r for r in records if r.run_id in train_runs]
+    for _, s, x in _windows(chosen, rows["consistency"], settings):
+        power += np.abs(np.fft.rfft(x * win, pad * n)[lo:hi]) ** 2
+    j = int(np.argmax(power))
+    k = k_fine[lo + j]
+    if 0 < j < power.size - 1:
+        a, b, c = np.log(power[j - 1:j + 2])
+        k += 0.5 * (a - c) / (a - 2 * b + c) * (k_fine[1] - k_fine[0])
+    amps = [2 * abs(np.mean(x * np.exp(-2j * np.pi * k * s)))
+            for _, s, x in _windows(chosen, rows["consistency"], settings)]
+    amp = float(np.sqrt(np.mean(np.square(amps)))) if amps else 0.0
     # which wheelset: the line's excess power in that wheelset's own axle-box spectrum
-    j = 1 if spec.axle1[i] >= spec.axle2[i] else 2
+    wheelset = 1 if spec.axle1[i] >= spec.axle2[i] else 2
     radius = amp / (2 * np.pi * k) ** 2
-    return WheelPolygon(float(1 / k), amp, j, float(radius), ratio)
+    return WheelPolygon(float(1 / k), amp, wheelset, float(radius), ratio)
 
 
 def polygon_error(records, rows, runs, poly: WheelPolygon | None, settings: WheelSettings = WheelSettings()):
