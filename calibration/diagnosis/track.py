@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 import scipy.optimize
 
 from .records import Statistics
@@ -80,14 +81,41 @@ def _bin_width(stats: Statistics) -> float:
     return float(np.min(np.diff(bins))) if len(bins) > 1 else 2.5
 
 
-def _basis(logk: np.ndarray, knots: np.ndarray) -> np.ndarray:
+def _hats(logk: np.ndarray, knots: np.ndarray):
+    """Piecewise-linear (hat) basis on ``knots``: each point weighs knot i by 1 - t and
+    knot i + 1 by t. Returns (i, t)."""
     x = np.clip(logk, knots[0], knots[-1])
-    B = np.zeros((x.size, knots.size))
     i = np.clip(np.searchsorted(knots, x) - 1, 0, knots.size - 2)
-    t = (x - knots[i]) / (knots[i + 1] - knots[i])
-    B[np.arange(x.size), i] = 1 - t
-    B[np.arange(x.size), i + 1] = t
-    return B
+    return i, (x - knots[i]) / (knots[i + 1] - knots[i])
+
+
+def _evaluate(coef: np.ndarray, logk: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    i, t = _hats(logk, knots)
+    return coef[i] * (1 - t) + coef[i + 1] * t
+
+
+class _Normal:
+    """Weighted least squares of hat-basis coefficients: the normal matrix is tridiagonal
+    and does not depend on the data values, so it is formed once per data set and each
+    fit is one banded solve."""
+
+    def __init__(self, d: _Data, knots: np.ndarray):
+        self.d, self.knots = d, knots
+        self.i, self.t = _hats(d.logk, knots)
+        n, w, i, t = knots.size, d.w, self.i, self.t
+        diag = np.bincount(i, w * (1 - t) ** 2, n) + np.bincount(i + 1, w * t * t, n)
+        off = np.bincount(i, w * (1 - t) * t, n)[:-1]
+        diag += 1e-9 * diag.mean()
+        self.ab = np.zeros((3, n))
+        self.ab[0, 1:], self.ab[1], self.ab[2, :-1] = off, diag, off
+        self.wsum = float(np.sum(w))
+
+    def solve(self, y: np.ndarray):
+        n, w, i, t = self.knots.size, self.d.w, self.i, self.t
+        rhs = np.bincount(i, w * y * (1 - t), n) + np.bincount(i + 1, w * y * t, n)
+        coef = scipy.linalg.solve_banded((1, 1), self.ab, rhs)
+        r = coef[i] * (1 - t) + coef[i + 1] * t - y
+        return coef, float(np.sum(w * r * r) / self.wsum)
 
 
 @dataclass(frozen=True)
@@ -102,34 +130,31 @@ class TrackFit:
         return {"track_resonance_hz": self.f_t, "damping_ratio": self.zeta}
 
 
-def _solve(d: _Data, knots, f_t, zeta):
+def _solve(ne: _Normal, f_t, zeta):
+    d = ne.d
     y = d.y if f_t is None else d.y - np.log10(transmissibility2(d.f, f_t, zeta))
-    B = _basis(d.logk, knots)
-    BtW = B.T * d.w
-    A = BtW @ B
-    coef = np.linalg.solve(A + 1e-9 * np.trace(A) / A.shape[0] * np.eye(A.shape[0]), BtW @ y)
-    r = B @ coef - y
-    return coef, float(np.sum(d.w * r * r) / np.sum(d.w))
+    return ne.solve(y)
 
 
 def fit_track(stats: Statistics, train_keys, flexible: bool, settings: TrackSettings = TrackSettings()) -> TrackFit:
     d = _collect(stats, train_keys, settings)
     knots = np.arange(d.logk.min(), d.logk.max() + settings.knot_decades, settings.knot_decades)
+    ne = _Normal(d, knots)
     if not flexible:
-        coef, err = _solve(d, knots, None, None)
+        coef, err = _solve(ne, None, None)
         return TrackFit(None, None, knots, coef, err)
     lf = np.log(settings.f_t_range)
     lz = np.log(settings.zeta_range)
     best = None
     for a in np.linspace(lf[0], lf[1], 40):
         for b in np.linspace(lz[0], lz[1], 8):
-            _, err = _solve(d, knots, np.exp(a), np.exp(b))
+            _, err = _solve(ne, np.exp(a), np.exp(b))
             if best is None or err < best[0]:
                 best = (err, a, b)
-    sol = scipy.optimize.minimize(lambda x: _solve(d, knots, np.exp(x[0]), np.exp(x[1]))[1], best[1:],
+    sol = scipy.optimize.minimize(lambda x: _solve(ne, np.exp(x[0]), np.exp(x[1]))[1], best[1:],
                                   method="L-BFGS-B", bounds=[tuple(lf), tuple(lz)])
     f_t, zeta = float(np.exp(sol.x[0])), float(np.exp(sol.x[1]))
-    coef, err = _solve(d, knots, f_t, zeta)
+    coef, err = _solve(ne, f_t, zeta)
     return TrackFit(f_t, zeta, knots, coef, err)
 
 
@@ -140,7 +165,7 @@ def track_error(stats: Statistics, keys, fit: TrackFit, settings: TrackSettings 
     but its level spectrum is estimated, not known)."""
     d = _collect(stats, keys, settings)
     y = d.y if fit.f_t is None else d.y - np.log10(transmissibility2(d.f, fit.f_t, fit.zeta))
-    r = _basis(d.logk, fit.knots) @ fit.coef - y
+    r = _evaluate(fit.coef, d.logk, fit.knots) - y
     seen = (d.logk >= fit.knots[0]) & (d.logk <= fit.knots[-1])  # no extrapolation in wavenumber
     out = []
     for c in range(len(CHANNELS)):
