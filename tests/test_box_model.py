@@ -145,3 +145,78 @@ def test_a_reduced_basis_reproduces_the_full_model_near_where_it_was_built(vehic
     assert np.all(reduced >= full * (1 - 1e-10))  # Rayleigh-Ritz: upper bounds
     assert np.max(reduced / full - 1) < 5e-4
     assert np.max(family.residuals(p, 12)) < 0.05
+
+
+# ---------------------------------------------------------------- assembly on quadrature grids
+def test_a_patch_mean_from_one_grid_evaluation_equals_a_finer_point_by_point_quadrature():
+    # the patch mean evaluates the basis once on the whole Gauss grid; the basis being
+    # polynomial, any finer rule gives the same mean (here 40 x 40 points, one at a time)
+    from calibration.models.box.assembly import _local_operator
+    strip = _strip(order=(12, 4))
+    model = _alone(strip)
+    centre, patch = np.array([1.3, 0.05, 0.0]), (0.8, 0.3)
+    _, G = _local_operator(model, "strip", centre, patch=patch)
+    x, w = np.polynomial.legendre.leggauss(40)
+    fine = sum(wi * wj / 4 * strip.displacement(centre + [xi * patch[0] / 2, xj * patch[1] / 2, 0.0])
+               for xi, wi in zip(x, w) for xj, wj in zip(x, w))
+    np.testing.assert_allclose(G, fine, rtol=0, atol=1e-13 * np.abs(fine).max())
+    # and the grid's operators are the single points' operators, bit for bit
+    pts = centre + np.column_stack([x * patch[0] / 2, x * patch[1] / 2, 0 * x])
+    for many, one in ((strip.displacements(pts), strip.displacement), (strip.rotations(pts), strip.rotation)):
+        assert all(np.array_equal(many[k], one(q)) for k, q in enumerate(pts))
+
+
+def _joint_halves(k_t=2.0e9, k_r=3.0e5):
+    """Two strips joined along x = 0 (0.5 m of edge), each joint spring its own parameter
+    (so K_units holds each spring's matrix alone, for k = 1)."""
+    left = _strip("left", (-1.5, 0, 0), a=3.0, order=(8, 3))
+    right = _strip("right", (1.5, 0, 0), a=3.0, order=(8, 3))
+    joint = Joint("middle", "left", "right", (0, -0.25, 0), (0, 0.25, 0), k_t, k_r)
+    parameters = (StiffnessParameter("kt", "joint", "middle", ("k_t",)),
+                  StiffnessParameter("kr", "joint", "middle", ("k_r",)))
+    return _alone(left, right, joints=[joint], parameters=parameters)
+
+
+def test_joint_springs_store_their_closed_form_energies():
+    # 1/2 k_t |d|^2 and 1/2 k_r (t . omega)^2 per metre of edge, over L = 0.5 m: a unit
+    # relative translation stores k_t L / 2, a relative rotation theta about the edge
+    # (y) with the edge points held together k_r theta^2 L / 2
+    model = _joint_halves()
+    left = model.panel("left")
+    s, m = model.dof_slices["left"], left.n_terms
+    L, a, theta = 0.5, left.a, 1e-3
+    Kt, Kr = model.K_units["kt"] / 2.0e9, model.K_units["kr"] / 3.0e5
+    q = np.zeros(model.n_dof)
+    q[s.start + 2 * m] = 2.0  # w = 1 m on the left strip: p0(xi) p0(eta) = 1/2
+    assert q @ Kt @ q == pytest.approx(L, rel=1e-12) and abs(q @ Kr @ q) < 1e-20
+    # w = -theta (x_local - a/2): zero at the edge (x_local = a/2), slope -theta, omega_y = theta
+    q = np.zeros(model.n_dof)
+    q[s.start + 2 * m] = theta * a  # the constant theta a / 2, as 2 x coefficient
+    q[s.start + 2 * m + (left.order[1] + 1)] = -theta * a / np.sqrt(3)  # -theta (a/2) xi = -theta a/sqrt(3) p1 p0
+    assert q @ Kr @ q == pytest.approx(theta**2 * L, rel=1e-12)
+    assert abs(q @ Kt @ q) < 1e-12 * theta**2 * L
+
+
+def test_joint_matrices_are_the_point_by_point_gauss_sums_to_the_bit():
+    # each joint's matrix comes from all its Gauss points at once (each basis evaluated once
+    # per edge); it is the point-by-point sum of w_g D_g^T D_g the energies are written in,
+    # bit for bit (panels along the axes: one product per entry and point, summed in order)
+    model = _joint_halves()
+    left, right = model.panel("left"), model.panel("right")
+    idx = np.r_[np.arange(model.dof_slices["left"].start, model.dof_slices["left"].stop),
+                np.arange(model.dof_slices["right"].start, model.dof_slices["right"].stop)]
+    x, w = np.polynomial.legendre.leggauss(max(left.order + right.order) + 2)
+    Kt, Kr = 0.0, 0.0
+    for xg, wg in zip(x, w):
+        q, weight = np.array([0.0, -0.25, 0.0]) + (xg + 1) / 2 * np.array([0.0, 0.5, 0.0]), wg * 0.5 / 2
+        D = np.hstack([left.displacement(q), -right.displacement(q)])
+        r = np.array([0.0, 1.0, 0.0]) @ np.hstack([left.rotation(q), -right.rotation(q)])
+        Kt, Kr = Kt + weight * (D.T @ D), Kr + weight * np.outer(r, r)
+    for name, k, ref in (("kt", 2.0e9, Kt), ("kr", 3.0e5, Kr)):
+        A = model.K_units[name].toarray()[np.ix_(idx, idx)]
+        assert np.array_equal(A, k * ref) and np.array_equal(A, A.T)
+
+
+def test_the_assembled_matrices_store_no_zeros(carbody):
+    for A in (carbody.M, carbody.K0, *carbody.K_units.values()):
+        assert np.all(A.data != 0)

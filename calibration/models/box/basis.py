@@ -15,22 +15,27 @@ import numpy as np
 from numpy.polynomial import legendre
 
 
-def _coefficients(order: int) -> list[np.ndarray]:
+@lru_cache(maxsize=None)
+def _coefficients(order: int, derivative: int = 0) -> tuple[np.ndarray, ...]:
+    """Legendre-series coefficients of p_0^(derivative) .. p_order^(derivative), made once
+    per (order, derivative)."""
     out = []
     for i in range(order + 1):
         c = np.zeros(i + 1)
         c[i] = np.sqrt((2 * i + 1) / 2)
-        out.append(c)
-    return out
+        d = legendre.legder(c, derivative) if derivative else c
+        d.setflags(write=False)
+        out.append(d)
+    return tuple(out)
 
 
 def values(order: int, x: np.ndarray, derivative: int = 0) -> np.ndarray:
-    """(len(x), order + 1): the ``derivative``-th derivative of p_0 .. p_order at x."""
+    """(len(x), order + 1): the ``derivative``-th derivative of p_0 .. p_order at x.
+
+    Evaluate a whole quadrature grid in one call: the cost is one ``legval`` per
+    polynomial, whatever the number of points."""
     x = np.atleast_1d(np.asarray(x, float))
-    cols = []
-    for c in _coefficients(order):
-        d = legendre.legder(c, derivative) if derivative else c
-        cols.append(legendre.legval(x, d) if d.size else np.zeros_like(x))
+    cols = [legendre.legval(x, d) if d.size else np.zeros_like(x) for d in _coefficients(order, derivative)]
     return np.stack(cols, axis=1)
 
 

@@ -116,33 +116,61 @@ class Panel:
     # -- kinematics at points ---------------------------------------------------------
     def local(self, point) -> tuple[float, float]:
         """(xi, eta) of a carbody-frame point lying in the panel's plane."""
-        d = np.asarray(point, float) - np.asarray(self.centre, float)
-        if abs(d @ self.axes[:, 2]) > 1e-9 * max(self.a, self.b, 1.0):
-            raise ValueError(f"point {point} is not in the plane of panel {self.name}")
-        xi, eta = 2 * (d @ self.axes[:, 0]) / self.a, 2 * (d @ self.axes[:, 1]) / self.b
-        if abs(xi) > 1 + 1e-9 or abs(eta) > 1 + 1e-9:
-            raise ValueError(f"point {point} lies outside panel {self.name}")
-        return float(xi), float(eta)
+        xi, eta = self.local_many(np.asarray(point, float)[None, :])
+        return float(xi[0]), float(eta[0])
 
-    def _shape(self, xi, eta, dx=0, dy=0) -> np.ndarray:
-        px = basis.values(self.order[0], [xi], dx)[0] * (2 / self.a) ** dx
-        py = basis.values(self.order[1], [eta], dy)[0] * (2 / self.b) ** dy
-        return np.kron(px, py)
+    def local_many(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """(xi, eta), each (n,), of n carbody-frame points (n, 3) lying in the panel's plane."""
+        P = np.atleast_2d(np.asarray(points, float))
+        d = P - np.asarray(self.centre, float)
+        off = np.abs(d @ self.axes[:, 2]) > 1e-9 * max(self.a, self.b, 1.0)
+        if off.any():
+            raise ValueError(f"point {P[np.argmax(off)].tolist()} is not in the plane of panel {self.name}")
+        xi, eta = 2 * (d @ self.axes[:, 0]) / self.a, 2 * (d @ self.axes[:, 1]) / self.b
+        out = (np.abs(xi) > 1 + 1e-9) | (np.abs(eta) > 1 + 1e-9)
+        if out.any():
+            raise ValueError(f"point {P[np.argmax(out)].tolist()} lies outside panel {self.name}")
+        return xi, eta
+
+    def _shapes(self, xi, eta, dx=0, dy=0) -> np.ndarray:
+        """(n, n_terms): the (dx, dy)-th derivative of every basis function p_i(xi) p_j(eta)
+        at n points; each 1D basis is evaluated once for all the points."""
+        px = basis.values(self.order[0], xi, dx) * (2 / self.a) ** dx
+        py = basis.values(self.order[1], eta, dy) * (2 / self.b) ** dy
+        return (px[:, :, None] * py[:, None, :]).reshape(px.shape[0], -1)
+
+    def displacements(self, points) -> np.ndarray:
+        """(n, 3, n_dof): carbody-frame displacement of the panel's material points at
+        ``points`` (n, 3) [m]."""
+        phi = self._shapes(*self.local_many(points))
+        n, m = phi.shape
+        local = np.zeros((n, 3, 3 * m))
+        for k in range(3):
+            local[:, k, k * m:(k + 1) * m] = phi
+        return self._rotate(local)
+
+    def rotations(self, points) -> np.ndarray:
+        """(n, 3, n_dof): small rotation vector at ``points`` (n, 3) [m] in the carbody
+        frame: the normal's tilt (w_y, -w_x) and the in-plane drilling rotation (v_x - u_y) / 2."""
+        xi, eta = self.local_many(points)
+        px, py = self._shapes(xi, eta, dx=1), self._shapes(xi, eta, dy=1)
+        n, m = px.shape
+        local = np.zeros((n, 3, 3 * m))
+        local[:, 0, 2 * m:] = py
+        local[:, 1, 2 * m:] = -px
+        local[:, 2, :m] = -py / 2
+        local[:, 2, m:2 * m] = px / 2
+        return self._rotate(local)
+
+    def _rotate(self, local: np.ndarray) -> np.ndarray:
+        """Panel-frame rows (n, 3, n_dof) to the carbody frame: row i = sum_k axes[i, k] local_k."""
+        R = self.axes
+        return sum(R[None, :, k, None] * local[:, k, None, :] for k in range(3))
 
     def displacement(self, point) -> np.ndarray:
         """(3, n_dof): carbody-frame displacement of the panel's material point at ``point``."""
-        phi = self._shape(*self.local(point))
-        z = np.zeros_like(phi)
-        local = np.array([np.concatenate([phi, z, z]), np.concatenate([z, phi, z]), np.concatenate([z, z, phi])])
-        return self.axes @ local
+        return self.displacements(np.asarray(point, float)[None, :])[0]
 
     def rotation(self, point) -> np.ndarray:
-        """(3, n_dof): small rotation vector at ``point`` in the carbody frame: the normal's
-        tilt (w_y, -w_x) and the in-plane drilling rotation (v_x - u_y) / 2."""
-        xi, eta = self.local(point)
-        px, py = self._shape(xi, eta, dx=1), self._shape(xi, eta, dy=1)
-        z = np.zeros_like(px)
-        local = np.array([np.concatenate([z, z, py]),
-                          np.concatenate([z, z, -px]),
-                          np.concatenate([-py / 2, px / 2, z])])
-        return self.axes @ local
+        """(3, n_dof): small rotation vector at ``point`` in the carbody frame (:meth:`rotations`)."""
+        return self.rotations(np.asarray(point, float)[None, :])[0]
