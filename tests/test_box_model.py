@@ -223,3 +223,42 @@ def test_joint_matrices_are_the_point_by_point_gauss_sums_to_the_bit():
 def test_the_assembled_matrices_store_no_zeros(carbody):
     for A in (carbody.M, carbody.K0, *carbody.K_units.values()):
         assert np.all(A.data != 0)
+
+
+# ---------------------------------------------------------------- the carbody's modal basis
+def test_the_inertia_count_is_the_number_of_modes_below_the_cut_off(carbody):
+    from calibration.models.box.reduction import modes_below
+    f = _frequencies(carbody, n=60)
+    for cutoff in (5.0, 25.0, 0.5 * (f[40] + f[41])):
+        assert modes_below(carbody.stiffness(np.ones(len(carbody.names))), carbody.M, cutoff) == \
+            np.count_nonzero(f < cutoff)
+
+
+def test_the_carbody_basis_is_one_eigen_solve_of_the_dense_modes_and_the_static_shapes(carbody, monkeypatch):
+    import scipy.sparse.linalg
+
+    from calibration.models.box import reduction
+    calls = {"eigsh": 0}
+    eigsh = scipy.sparse.linalg.eigsh
+
+    def counted(*args, **kwargs):
+        calls["eigsh"] += 1
+        return eigsh(*args, **kwargs)
+
+    monkeypatch.setattr(reduction.scipy.sparse.linalg, "eigsh", counted)
+    p = np.ones(len(carbody.names))
+    f = _frequencies(carbody, n=80)
+    cutoff = 0.5 * (f[55] + f[56])  # 56 modes below, more than the 40 once asked for first
+    loads = np.random.default_rng(3).standard_normal((carbody.n_dof, 4))
+    V, omega, n_modes = reduction.carbody_basis(carbody, p, cutoff, loads)
+    assert calls["eigsh"] == 1 and n_modes == 56
+    np.testing.assert_allclose(omega[6:n_modes] / (2 * np.pi), f[6:56], rtol=1e-9)
+    K, M = carbody.stiffness(p), carbody.M
+    np.testing.assert_allclose(V.T @ (M @ V), np.eye(V.shape[1]), atol=1e-9)
+    KV = V.T @ (K @ V)
+    assert np.abs(KV - np.diag(omega**2)).max() < 1e-8 * omega.max() ** 2
+    # the static shapes of the loads lie in the span of the basis (static correction)
+    sigma = -(2 * np.pi * 0.5) ** 2
+    X = scipy.sparse.linalg.spsolve((K - sigma * M).tocsc(), loads)
+    fit = V @ (V.T @ (M @ X))
+    assert np.linalg.norm(X - fit) < 1e-9 * np.linalg.norm(X)
