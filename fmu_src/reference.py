@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import scipy.signal
 
 from calibration.models.car2d import (GRAVITY, Output, build_car, state_space, static_deflection,
                                       wheelset_positions)
@@ -104,18 +105,53 @@ def nrmse(y: np.ndarray, ref: np.ndarray) -> float:
 
 def box_reference(reduced, zeta: float, profile: Profile, speed: float, t: np.ndarray, force: np.ndarray, *,
                   start: float = 0.0, substeps: int = 20) -> np.ndarray:
-    """Floor accelerations (n_t, n_sensors) of the reduced box vehicle
-    (:class:`calibration.models.box.reduction.ReducedVehicle`) at the uniform times ``t``,
-    over the track at ``speed`` with the exciter force ``force`` (given at ``t``, linear in
-    between), started in static equilibrium; the rails are evaluated ``substeps`` times per
-    interval of t."""
+    """Floor accelerations (n_t, n_sensors) [m/s^2] of the reduced box vehicle
+    (:class:`calibration.models.box.reduction.ReducedVehicle`) at the uniform times ``t`` [s],
+    over the track at ``speed`` [m/s] (carbody centre at track distance ``start`` [m] at
+    t = 0) with the exciter force ``force`` [N] (given at ``t``, linear in between), started
+    in static equilibrium; the rails are evaluated ``substeps`` times per interval of t and
+    held linear in between (first-order hold on that fine grid, stepped exactly).
+
+    Only the output samples' states are formed: with a = exp(lambda h) per mode of the state
+    matrix and phi1, phi2 the first-order-hold integrals over a sub-step h
+    (:mod:`calibration.models.simulate`), the exact recursion over the S = ``substeps``
+    sub-steps of one output interval is
+
+        eta[k+1] = a^S eta[k] + sum_{j=0..S} c_j p[k S + j],
+        c_0 = a^(S-1) (phi1 - phi2),  c_j = a^(S-1-j) (phi1 - phi2) + a^(S-j) phi2,  c_S = phi2,
+
+    p = (V^-1 B) w the modal inputs on the fine grid, so each output interval's S + 1 input
+    samples map to its modal force in one real matrix product, and the recursion runs at
+    the output rate (the fine grid's states are never formed)."""
     t = np.asarray(t, float)
-    dt = (t[1] - t[0]) / substeps
-    tf = t[0] + dt * np.arange((len(t) - 1) * substeps + 1)
+    force = np.asarray(force, float)
+    if t.ndim != 1 or t.size < 2 or force.shape != t.shape:
+        raise ValueError(f"t and force: expected equal 1-D arrays of >= 2 samples, got {t.shape} and {force.shape}")
+    S = int(substeps)
+    if S < 1:
+        raise ValueError(f"substeps = {substeps}; must be >= 1")
+    dt = (t[1] - t[0]) / S
+    n_t = t.size
+    tf = t[0] + dt * np.arange((n_t - 1) * S + 1)
     s = start + speed * tf[:, None] + reduced.wheelset_x[None, :]
     z, slope, _, _ = profile(s)
-    w = np.hstack([z, speed * slope, np.interp(tf, t, force)[:, None]])
+    w = np.hstack([z, speed * slope, np.interp(tf, t, force)[:, None]])  # (n_fine, 9)
     ss = reduced.state_space(zeta)
     levels = np.array([True] * 4 + [False] * 4 + [True])  # rail levels and the force; not the rates
     x0 = -np.linalg.solve(ss.A, ss.B @ np.where(levels, w[0], 0.0))  # static equilibrium, as the FMU starts
-    return ModalSimulator(ss, dt, x0=x0).step_chunk(w)[::substeps]
+    sim = ModalSimulator(ss, dt, x0=x0)  # the modal decomposition and the sub-step's phi1, phi2
+    a, d1, phi2 = sim.a, sim.phi1 - sim.phi2, sim.phi2
+    powers = a[None, :] ** np.arange(S + 1)[:, None]  # a^0 .. a^S, (S + 1, n_modes)
+    c = np.zeros((S + 1, a.size), complex)
+    c[:S] += powers[S - 1::-1] * d1  # a^(S-1-j) (phi1 - phi2), j = 0 .. S-1
+    c[1:] += powers[S - 1::-1] * phi2  # a^(S-j) phi2, j = 1 .. S
+    Bm = sim.Vinv_B.T  # (n_inputs, n_modes)
+    # f_k = sum_j c_j (B_m^T w[k S + j]) = W_k @ F, W_k the interval's inputs (n_inputs, S + 1)
+    # flattened, F[(m, j), i] = Bm[m, i] c[j, i]; W real, so F's real and imaginary parts apart
+    W = np.lib.stride_tricks.sliding_window_view(w, S + 1, axis=0)[::S].reshape(n_t - 1, -1)
+    F = (Bm[:, None, :] * c[None, :, :]).reshape(W.shape[1], a.size)
+    f = W @ F.real + 1j * (W @ F.imag)  # (n_t - 1, n_modes)
+    eta = np.empty((n_t, a.size), complex)  # eta[0] the initial state, then eta[k+1] = a^S eta[k] + f[k]
+    for i in range(a.size):
+        eta[:, i] = scipy.signal.lfilter([1.0], [1.0, -powers[S, i]], np.concatenate([[sim.eta[i]], f[:, i]]))
+    return (eta @ sim.CV.T).real + w[::S] @ ss.D.T

@@ -96,6 +96,26 @@ def band_force(t, seed=1):
     return 300.0 * f / f.std()
 
 
+def test_the_reference_stepped_at_the_output_rate_is_the_fine_grid_response(reduced, car_track):
+    """box_reference sums each output interval's sub-samples into one modal force and steps
+    at the output rate; stepping every sub-sample (first-order hold on the fine grid, then
+    keeping every 20th output) is the same exact response."""
+    from calibration.models.simulate import ModalSimulator
+
+    profile, substeps = car_track[1], 20
+    t = np.arange(0.0, 1.0 + 5e-4, 1e-3)
+    force = band_force(t)
+    y = box_reference(reduced, ZETA, profile, SPEED, t, force, start=START, substeps=substeps)
+    tf = np.arange((t.size - 1) * substeps + 1) * (1e-3 / substeps)
+    z, slope, _, _ = profile(START + SPEED * tf[:, None] + reduced.wheelset_x[None, :])
+    w = np.hstack([z, SPEED * slope, np.interp(tf, t, force)[:, None]])
+    ss = reduced.state_space(ZETA)
+    x0 = -np.linalg.solve(ss.A, ss.B @ (w[0] * np.r_[np.ones(4), np.zeros(4), 1.0]))  # at rest: no rates
+    fine = ModalSimulator(ss, tf[1], x0=x0).step_chunk(w)[::substeps]
+    assert y.shape == fine.shape == (t.size, len(SENSOR_GRID))
+    assert np.abs(y - fine).max() < 1e-10 * np.abs(fine).max()
+
+
 @pytest.mark.parametrize("h, tol", [(1e-3, 1e-3), (1e-2, 1e-2)])
 def test_box_fmu_over_the_track_with_the_exciter_matches_the_reduced_model(box_fmus, reduced, car_track, h, tol):
     spec, built = box_fmus
