@@ -14,33 +14,42 @@ against railcal's reduced box vehicle and the full box model, at nominal stiffne
   1e-2, and <= 30 s wall time per 10 s simulated for exudyn (carbody modal data, items, static
   solution, integration) with railcal's exact response.
 
-exudyn's carbody modal data are computed once and serve all three exudyn systems.
+exudyn's carbody modal data are computed once and serve all three exudyn systems. numpy and
+scipy run on one BLAS thread unless OPENBLAS_NUM_THREADS is set (see the imports).
 
     python scripts/crosscheck_box.py [--coarse] [--cutoff 60] [--duration 10] [--track-step 2e-4]
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+# One BLAS thread unless the caller says otherwise (set before numpy loads OpenBLAS). The
+# check's dense algebra is small (the reduced vehicle's 208 states, Lanczos vectors of 2709);
+# on the shared 2-core machine, with other jobs on both cores, threaded OpenBLAS waited for
+# its second thread in every call: the 208 x 208 eig and SVD of railcal's exact response
+# took 1.9 s and 5.9 s instead of 0.03 s and 0.01 s.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from calibration.models.box.reduction import reduce_vehicle
-from calibration.models.simulate import ModalSimulator
-from calibration.truth.excitation import (
+import numpy as np  # noqa: E402
+
+from calibration.models.box.reduction import reduce_vehicle  # noqa: E402
+from calibration.models.simulate import ModalSimulator  # noqa: E402
+from calibration.truth.excitation import (  # noqa: E402
     EXCITER,
     SENSOR_GRID,
     ExcitationSettings,
     band_random,
     build_model,
 )
-from fmu_src.box import box_spec
-from fmu_src.build import build_fmu
-from fmu_src.reference import box_reference, nrmse, smooth_profile
-from reference_models.box import (
+from fmu_src.box import box_spec  # noqa: E402
+from fmu_src.build import build_fmu  # noqa: E402
+from fmu_src.reference import box_reference, nrmse, smooth_profile  # noqa: E402
+from reference_models.box import (  # noqa: E402
     build_box_exudyn,
     carbody_modes,
     eigen_errors,
@@ -49,7 +58,7 @@ from reference_models.box import (
     reduced_frequencies,
     simulate_box_exudyn,
 )
-from reference_models.car2d import RailInput
+from reference_models.car2d import RailInput  # noqa: E402
 
 TOL_EIG, TOL_NRMSE, WALL_PER_10_S = 1e-4, 1e-2, 30.0
 ZETA, BELOW_HZ, DURATION, FS, STEP = 0.02, 20.0, 2.0, 1000.0, 1e-4
@@ -157,7 +166,8 @@ def over_the_track(model, p, reduced, modes, t_modes: float, duration: float, st
           f"static solution and output {t_exu - res.wall_time:.1f} s + integration {res.wall_time:.1f} s (process CPU "
           f"{res.cpu_time:.1f} s) + railcal exact response {t_ref:.1f} s (limit {limit:g} s) -> "
           f"{'PASS' if wall <= limit else 'FAIL'}")
-    print(f"  (not counted: the FMU's build and fmpy run, 1 ms steps, {t_fmu:.1f} s)")
+    print(f"  (not counted: the FMU's build and fmpy run, 1 ms steps, {t_fmu:.1f} s; BLAS threads: "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')})")
     return ok_nrmse and wall <= limit
 
 
