@@ -1,0 +1,73 @@
+"""Figures of a stationary-test diagnosis (:func:`.stationary.diagnose_stationary`): the
+held-out FRFs measured and modelled before and after the extension on the channels the
+baseline misses most, and the MAC of the identified modes against the model's."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..identification.plots import save_figure  # noqa: E402
+
+
+def plot_stationary_diagnosis(result: dict, stem, channels: int = 6) -> list[Path]:
+    """Write ``<stem>_frf.png`` and ``<stem>_mac.png`` from ``result["_plot"]``; returns
+    their paths."""
+    stem = Path(stem)
+    data = result["_plot"]
+    return [_frf(data, stem.with_name(stem.name + "_frf.png"), channels),
+            _mac(data, stem.with_name(stem.name + "_mac.png"))]
+
+
+def _frf(data: dict, path: Path, channels: int) -> Path:
+    f = data["frequency"]
+    before = np.asarray(data["error_before"])
+    order = np.argsort(-before)[:channels]  # the channels the baseline misses most
+    cols = 2 if len(order) > 1 else 1
+    rows = int(np.ceil(len(order) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.8 * rows), sharex=True, squeeze=False)
+    for ax, i in zip(axes.ravel(), order):
+        ax.semilogy(f, np.abs(data["measured"][:, i]), "k-", lw=1.0, label="measured, held out (H1)")
+        ax.semilogy(f, np.abs(data["baseline"][:, i]), "--", color="tab:red", lw=0.9, label="calibrated box model")
+        title = f"{data['sensors'][i]}: error {before[i]:.1f}"
+        if data["extension"] is not None:
+            ax.semilogy(f, np.abs(data["extension"][:, i]), "-", color="tab:blue", lw=0.9,
+                        label=f"with {data['extension_name']}")
+            title += f" -> {data['error_after'][i]:.2f}"
+        ax.set_title(title + " x noise", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.ravel()[len(order):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("frequency [Hz]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("|a / F| [(m/s^2)/N]")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"held-out FRFs, exciter force to floor accelerations; cause: {data['cause']}", fontsize=10)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def _mac(data: dict, path: Path) -> Path:
+    panels = [("calibrated box model", data["mac"], data["mac_cols"])]
+    if data.get("mac_after") is not None:
+        panels.append((f"with {data['extension_name']}", data["mac_after"], data["mac_cols_after"]))
+    rows = data["mac_rows"]
+    width = sum(1.5 + 0.45 * len(c) for _, _, c in panels)
+    fig, axes = plt.subplots(1, len(panels), figsize=(max(width, 5), 1.5 + 0.45 * max(len(rows), 1)), squeeze=False)
+    for ax, (title, mac, cols) in zip(axes[0], panels):
+        mac = np.asarray(mac, float)
+        ax.imshow(mac, cmap="Greys", vmin=0, vmax=1, aspect="auto")
+        for (i, j), v in np.ndenumerate(mac):
+            if v >= 0.1:
+                ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=6, color="w" if v > 0.5 else "k")
+        ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=7)
+        ax.set_yticks(range(len(rows)), rows, fontsize=7)
+        ax.set_xlabel("model modes")
+        ax.set_title(f"MAC, identified (training) x {title}", fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, path)
