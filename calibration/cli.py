@@ -309,8 +309,14 @@ def cmd_diagnose(args) -> int:
     out_path = Path(args.out)
     if out_path.is_dir():
         raise InputError("is a folder; --out takes the JSON file to write", path=out_path)
-    result = diagnose(campaign, progress=_progress(args))
-    result["plots"] = [str(p) for p in plot_diagnosis(result, out_path.with_suffix(""))]
+    if campaign.meta.kind == "stationary_excitation":
+        from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
+
+        result = diagnose_stationary(campaign, progress=_progress(args))
+        result["plots"] = [str(p) for p in plot_stationary_diagnosis(result, out_path.with_suffix(""))]
+    else:
+        result = diagnose(campaign, progress=_progress(args))
+        result["plots"] = [str(p) for p in plot_diagnosis(result, out_path.with_suffix(""))]
     result.pop("_plot")
     write_json_atomic(out_path, result)
     print(f"cause: {result['cause']}")

@@ -77,12 +77,13 @@ class StationarySettings:
     band: tuple[float, float] = (6.0, 30.0)  # [Hz] FRF comparison band (force band 5-50 Hz)
     pso: PSOSettings = field(default_factory=lambda: PSOSettings(particles=40, iterations=40, target=0.5))
     seed: int = 0  # of the swarm's generator
-    basis_modes: int = 80  # full-model modes in every reduced basis (to about 65 Hz)
+    basis_hz: float = 70.0  # [Hz] every reduced basis keeps all full-model modes below this (at the nominal factors)
     derivative_modes: int = 16  # lowest modes whose parameter derivatives enter the basis
-    basis_size: int = 120  # reduced basis size
+    basis_extra: int = 40  # derivative directions, compressed to this many basis vectors
     damping_range: tuple[float, float] = (0.002, 0.15)  # elastic modal damping ratios fitted
     floor: float = 0.01  # model accuracy floor in the error's standard deviation (1 %)
     refine_iterations: int = 40  # least-squares iterations per refinement
+    starts: int = 3  # global-search candidates of each extension refined (briefly; the best fully)
     min_gain: float = 0.3  # penalised held-out error reduction for a cause
     penalty: float = 0.01  # per extension parameter
     max_loss: float = 0.2  # largest held-out worsening of any channel for a cause
@@ -96,8 +97,11 @@ class StationarySettings:
             raise ValueError(f"band {self.band} Hz must satisfy 0 < low < high")
         if not 0 < self.damping_range[0] < self.damping_range[1] < 1:
             raise ValueError(f"damping_range {self.damping_range} must satisfy 0 < low < high < 1")
-        if self.basis_size <= self.basis_modes or self.derivative_modes > self.basis_modes:
-            raise ValueError("need derivative_modes <= basis_modes < basis_size")
+        if not self.basis_hz > 2 * self.band[1]:
+            raise ValueError(f"basis_hz {self.basis_hz:g} Hz must exceed twice the band's top ({self.band[1]:g} Hz): "
+                             "modes just above the band shape the accelerance inside it")
+        if self.basis_extra < 0 or self.derivative_modes < 0:
+            raise ValueError("basis_extra and derivative_modes must be >= 0")
         if not self.floor > 0 or not self.min_gain > 0 or not self.noise_alarm > 1:
             raise ValueError("floor and min_gain must be > 0 and noise_alarm > 1")
 
@@ -329,6 +333,20 @@ class Stiffness:
         return (K - g * part).tocsr()
 
 
+def modes_below(model: BoxModel, p, hz: float, start: int = 60) -> int:
+    """How many modes of the box model at factors ``p`` lie below ``hz`` [Hz] (the
+    lowest modes solved in growing batches until one passes ``hz``)."""
+    K = model.stiffness(np.asarray(p, float))
+    lu = scipy.sparse.linalg.splu(K.tocsc())
+    k = min(start, model.n_dof - 2)
+    while True:
+        w2, _ = _lowest_modes(K, model.M, k, lu)
+        n = int(np.sum(np.sqrt(np.clip(w2, 0, None)) < 2 * np.pi * hz))
+        if n < k or k >= model.n_dof - 2:
+            return n
+        k = min(2 * k, model.n_dof - 2)
+
+
 def _lowest_modes(K, M, n_modes: int, lu=None):
     """Lowest ``n_modes`` eigenpairs of K x = lambda M x (K positive definite: the vehicle
     stands on its suspension), shift-invert about 0 with the factorisation ``lu`` of K
@@ -359,18 +377,21 @@ class Reduced:
     ops: Operators
 
     @classmethod
-    def build(cls, ops: Operators, at: Stiffness, *, n_modes: int, n_deriv: int, size: int,
-              static_rows=(), extra_points: tuple[Stiffness, ...] = ()) -> "Reduced":
-        """Basis: the full model's lowest ``n_modes`` modes at ``at`` (kept exactly), the
-        static responses K^-1 b of the exciter and of ``static_rows`` (kept exactly), and,
-        compressed to ``size`` by POD, the derivative directions K^-1 K_i phi_k of the lowest
-        ``n_deriv`` modes for every factor (and the softened panel) and the modes at
-        ``extra_points``."""
+    def build(cls, ops: Operators, at: Stiffness, *, n_modes: int, n_deriv: int, extra: int,
+              below_hz: float | None = None, static_rows=(), extra_points: tuple[Stiffness, ...] = ()) -> "Reduced":
+        """Basis: the full model's lowest ``n_modes`` modes at ``at`` (more if needed to
+        hold every mode below ``below_hz`` [Hz]; kept exactly), the static responses K^-1 b
+        of the exciter and of ``static_rows`` (kept exactly), and, compressed to ``extra``
+        vectors by POD, the derivative directions K^-1 K_i phi_k of the lowest ``n_deriv``
+        modes for every factor (and the softened panel) and the modes at ``extra_points``."""
         model = ops.model
         K = at.matrix(ops)
         M = model.M
         lu = scipy.sparse.linalg.splu(K.tocsc())
-        _, X = _lowest_modes(K, M, n_modes, lu)
+        w2, X = _lowest_modes(K, M, n_modes, lu)
+        while below_hz is not None and w2[-1] < (2 * np.pi * below_hz) ** 2 and X.shape[1] < model.n_dof - 22:
+            w2, X = _lowest_modes(K, M, X.shape[1] + 20, lu)  # a softened panel brings its modes down
+        n_modes = X.shape[1]
         statics = lu.solve(np.column_stack([ops.e, *static_rows]))
         dirs = [model.K_units[n] for n in model.names]
         if at.panel is not None:
@@ -380,7 +401,8 @@ class Reduced:
         for q in extra_points:
             blocks.append(_lowest_modes(q.matrix(ops), M, n_modes)[1])
         V = _m_orthonormal(np.hstack([X, statics]), M)
-        if size > V.shape[1]:
+        size = V.shape[1] + extra
+        if extra > 0 and blocks:
             Sb = np.hstack(blocks)
             Sb = Sb - V @ (V.T @ (M @ Sb))
             Sb = Sb / np.sqrt(np.maximum(np.einsum("ij,ij->j", Sb, M @ Sb), 1e-300))[None, :]
@@ -691,6 +713,7 @@ class _Context:
     default_zeta: float  # median identified damping ratio
     carbody_mass: float  # [kg]
     say: Callable
+    n_modes: int  # full-model modes kept in every reduced basis (those below settings.basis_hz)
 
     @property
     def model(self) -> BoxModel:
@@ -745,13 +768,16 @@ def _stiffness_at(layout: Layout, x, panel) -> Stiffness:
     return Stiffness(p)
 
 
-def _basis(ctx: _Context, layout: Layout, x, panel, extra=()) -> Reduced:
+def _basis(ctx: _Context, layout: Layout, x, panel) -> Reduced:
+    """The reduced basis at unknowns ``x`` (with the static response to a load at the
+    equipment's mount, for that hypothesis)."""
     s = ctx.settings
     rows = ()
     if layout.extension == "equipment":
         rows = (_points_operator(ctx.model, [layout.split(x)[2][3:5]])[0],)
-    return Reduced.build(ctx.ops, _stiffness_at(layout, x, panel), n_modes=s.basis_modes, n_deriv=s.derivative_modes,
-                         size=s.basis_size, static_rows=rows, extra_points=extra)
+    return Reduced.build(ctx.ops, _stiffness_at(layout, x, panel), n_modes=ctx.n_modes,
+                         n_deriv=min(s.derivative_modes, ctx.n_modes), extra=s.basis_extra, below_hz=s.basis_hz,
+                         static_rows=rows)
 
 
 def _fit(ctx: _Context, name: str, layout: Layout, slots: Slots, x0, lo, hi, *, panel=None, red=None,
@@ -857,10 +883,33 @@ def _baseline(ctx: _Context) -> tuple[Fitted, dict]:
     layout = Layout(len(p0), slots.n)
     lo, hi = _factor_bounds(ctx, slots.n)
     fit = _fit(ctx, "baseline", layout, slots, np.concatenate([np.log(p0), np.log(z0)]), lo, hi, red=red)
+    retried = _retry_bounds(ctx, fit)
+    if retried is not None:
+        fit = retried
     swarm = {"particles": s.pso.particles, "iterations": cal.pso["iterations"], "stop_pct": s.pso.target,
              "modal_fit_pct": cal.pso["best_full_pct"], "parameters": cal.parameters,
              "undetermined_by_frequencies": [d["in_words"] for d in cal.identifiability["undetermined_directions"]]}
     return fit, swarm
+
+
+def _retry_bounds(ctx: _Context, fit: Fitted) -> Fitted | None:
+    """A factor the FRF refinement drove to its bound is often a weakly felt one (a
+    stiff edge spring) the trust region walked off along a shallow valley: the fit is
+    retried with those factors back at their prior means; the retry is returned if it
+    fits the training part better (else None)."""
+    at = [n.split(" ")[0] for n in _at_bounds(ctx, fit)]
+    if not at:
+        return None
+    means = {q.name: q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)}
+    x = fit.x.copy()
+    for n in at:
+        x[ctx.names.index(n)] = np.log(np.clip(means[n], ctx.low[ctx.names.index(n)] * 1.001,
+                                               ctx.high[ctx.names.index(n)] / 1.001))
+    lo, hi = _factor_bounds(ctx, fit.layout.n_slots)
+    alt = _fit(ctx, "baseline", fit.layout, fit.family.slots, x, lo, hi)
+    ctx.say(f"baseline factor(s) at a bound ({', '.join(at)}): retried from the prior mean, training error "
+            f"{alt.train_error / len(ctx.ident.sensors):.2f} against {fit.train_error / len(ctx.ident.sensors):.2f}")
+    return alt if alt.train_error < fit.train_error else None
 
 
 def _at_bounds(ctx: _Context, fit: Fitted, tol: float = 0.01) -> list[str]:
@@ -875,10 +924,10 @@ def _at_bounds(ctx: _Context, fit: Fitted, tol: float = 0.01) -> list[str]:
     return out
 
 
-def _baseline_from(ctx: _Context, base: Fitted, fit: Fitted) -> Fitted:
-    """The baseline re-fitted from a hypothesis's factors, the extension left out: a
-    softened panel alone in its group (the roof) gives its group's factors divided by the
-    divisor, clipped to their range."""
+def _baseline_start(ctx: _Context, base: Fitted, fit: Fitted) -> np.ndarray:
+    """The baseline's unknowns at a hypothesis's factors, the extension left out (a
+    softened panel alone in its group, the roof, gives its group's factors divided by the
+    divisor, clipped to their range), with the baseline's dampings."""
     p, _, ext = fit.layout.split(fit.x)
     p = p.copy()
     if fit.layout.extension == "softening":
@@ -886,8 +935,7 @@ def _baseline_from(ctx: _Context, base: Fitted, fit: Fitted) -> Fitted:
             p[ctx.names.index(n)] /= float(np.exp(ext[0]))
     p = np.clip(p, ctx.low * (1 + 1e-6), ctx.high * (1 - 1e-6))
     _, z, _ = base.layout.split(base.x)
-    lo, hi = _factor_bounds(ctx, base.layout.n_slots)
-    return _fit(ctx, "baseline", base.layout, base.family.slots, np.concatenate([np.log(p), np.log(z)]), lo, hi)
+    return np.concatenate([np.log(p), np.log(z)])
 
 
 def _own_group_factors(ops: Operators, panel: str) -> tuple[str, ...]:
@@ -936,16 +984,17 @@ def _extension_start(ctx: _Context, base: Fitted, layout: Layout, red: Reduced, 
 def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     """Global start: every panel x divisor of :data:`DIVISOR_SCAN`, at the baseline's and at
     the nominal factors (the baseline's may have bent to mimic the softening), scored by
-    the training error on one basis per panel spanning the divisors; the three best starts
-    refined with factors and divisor free, first on smoothed spectra (continuation), then
-    briefly on the exact residual; the best of them fitted fully (dampings free too)."""
+    the training error on one basis per panel spanning the divisors; the best
+    ``settings.starts`` (panel, divisor) starts refined with factors and divisor free, first
+    on smoothed spectra (continuation), then briefly on the exact residual; the best of
+    them fitted fully (dampings free too)."""
     s = ctx.settings
     p_b, z_b, _ = base.layout.split(base.x)
     p_nom = np.clip([q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)], ctx.low, ctx.high)
     scan = []
     for panel in SOFTENING_PANELS:
-        red = Reduced.build(ctx.ops, Stiffness(p_nom, panel, 4.0), n_modes=s.basis_modes, n_deriv=0,
-                            size=s.basis_size + 40, extra_points=tuple(Stiffness(p_nom, panel, d) for d in (1.5, 12.0)))
+        red = Reduced.build(ctx.ops, Stiffness(p_nom, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
+                            extra=s.basis_extra + 40, below_hz=s.basis_hz, extra_points=tuple(Stiffness(p_nom, panel, d) for d in (1.5, 12.0)))
         lay = Layout(len(p_b), base.family.slots.n, "softening")
         fam = Family.make(red, base.family.slots, lay, ctx.default_zeta)
         for p0 in (p_b, p_nom):
@@ -974,7 +1023,7 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
             x = _least_squares(fam, x, lo, hi, ctx.meas, s.refine_iterations // 2, s.floor, free, smooth=width)
             red = _basis(ctx, lay, x, panel)
         starts.append(("local_panel_softening", lay, slots, x, lo, hi, panel, red))
-        if len(starts) == 3:
+        if len(starts) == s.starts:
             break
     return _fit_best(ctx, starts)
 
@@ -987,8 +1036,10 @@ MOUNT_Y = (-1.2, -0.6, 0.0, 0.6, 1.2)  # [m]
 
 
 def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
-    """Scan mount point x mounting frequency x mass on the baseline's modes (held), then
-    refine the three best distinct candidates jointly with the baseline."""
+    """Scan mount point (:data:`MOUNT_X` x :data:`MOUNT_Y`) x mounting frequency (2 % steps
+    over the band) x mass (:data:`MASS_RATIOS`) on the baseline's modes and dampings
+    (held; every third line), then refine the best ``settings.starts`` distinct candidates
+    jointly with the baseline's factors (briefly; the best fully, dampings free too)."""
     s = ctx.settings
     meas = replace(ctx.meas, frequency=ctx.meas.frequency[::3], H=ctx.meas.H[::3], sigma2=ctx.meas.sigma2[::3])
     modes, zeta = base.modes()
@@ -1031,7 +1082,7 @@ def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
     for e, pt, r, h in best:
         if all(abs(h / c[3] - 1) > 0.05 or np.hypot(*(pt - c[1])) > 3.0 for c in chosen):
             chosen.append((e, pt, r, h))
-        if len(chosen) == 3:
+        if len(chosen) == s.starts:
             break
     p_b, _, _ = base.layout.split(base.x)
     out = []
@@ -1220,9 +1271,12 @@ def _context(campaign: Campaign, settings: StationarySettings, model: BoxModel |
     high = np.array([q.high for q in search])
     zetas = [m.damping_ratio for m in ident.modes if m.damping_ratio]
     default = float(np.clip(np.median(zetas), *settings.damping_range)) if zetas else 0.02
-    say(f"training {', '.join(train.label)}: {len(ident.modes)} modes; held out {', '.join(test.label)}")
+    p_nom = np.clip([q.mean for q in search], low, high)
+    n_modes = modes_below(model, p_nom, settings.basis_hz)
+    say(f"training {', '.join(train.label)}: {len(ident.modes)} modes; held out {', '.join(test.label)}; "
+        f"reduced bases keep the model's {n_modes} modes below {settings.basis_hz:g} Hz")
     return _Context(campaign, settings, ops, train, test, ident, ident_test, meas, meas_test, low, high, default,
-                    carbody_mass(model), say)
+                    carbody_mass(model), say, n_modes)
 
 
 def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | None = None,
@@ -1257,8 +1311,15 @@ def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | 
     for name, fit in fits.items():
         if _judge(ctx, EXTENSIONS[name], fit, held["error"])["penalised_gain"] < s.min_gain:
             continue
-        alt = _baseline_from(ctx, base, fit)
-        restarts.append({"from": name, "training_error_mean": alt.train_error / len(ctx.ident.sensors),
+        start = _baseline_start(ctx, base, fit)
+        e0 = _total_error(base.family, start, ctx.meas, s.floor)
+        if e0 >= base.train_error:  # the extension's own factors do not fit better without it
+            restarts.append({"from": name, "start_error_mean": e0 / len(ctx.ident.sensors), "kept": False})
+            continue
+        lo, hi = _factor_bounds(ctx, base.layout.n_slots)
+        alt = _fit(ctx, "baseline", base.layout, base.family.slots, start, lo, hi)
+        restarts.append({"from": name, "start_error_mean": e0 / len(ctx.ident.sensors),
+                         "training_error_mean": alt.train_error / len(ctx.ident.sensors),
                          "kept": bool(alt.train_error < base.train_error)})
         if alt.train_error < base.train_error:
             base = alt
@@ -1301,7 +1362,8 @@ def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | 
         "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
                      "noise_alarm": s.noise_alarm, "band_hz": list(s.band), "floor": s.floor,
                      "swarm": {"particles": s.pso.particles, "iterations": s.pso.iterations, "stop_pct": s.pso.target},
-                     "basis": {"modes": s.basis_modes, "derivative_modes": s.derivative_modes, "size": s.basis_size},
+                     "basis": {"below_hz": s.basis_hz, "modes": ctx.n_modes, "derivative_modes": s.derivative_modes,
+                               "extra": s.basis_extra},
                      "model_dof": ctx.model.n_dof},
         "wall_s": time.perf_counter() - t0,
         "_plot": plot,

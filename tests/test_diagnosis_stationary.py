@@ -1,0 +1,199 @@
+"""Diagnosis of stationary excitation tests: the extensions are the physics they claim to
+be, and hidden effects are named on campaigns from seeds never used while developing.
+
+A coarse box model (every panel order - 4, the ``coarse_box_model`` fixture) keeps the
+file fast; the physics checked is the same at full order."""
+import json
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg
+from conftest import COARSE_BOX_ORDERS
+
+from calibration.data.campaign import CampaignMeta, CampaignWriter, Excitation, Prior, open_campaign
+from calibration.data.errors import InputError
+from calibration.diagnosis.stationary import (EXTENSIONS, Operators, Reduced, Stiffness, StationarySettings,
+                                              diagnose_stationary, equipment_accelerance, modal_accelerance,
+                                              plot_stationary_diagnosis)
+from calibration.truth.effects import EFFECTS, EffectChoice
+from calibration.truth.excitation import (EXCITER, SENSOR_GRID, ExcitationSettings, ModalModel, UnderfloorEquipment,
+                                          add_equipment, campaign_priors, draw_truth_parameters, soften_panel,
+                                          synth_excitation, truth_modes)
+
+SETTINGS = ExcitationSettings(runs=2, duration=300.0, order_change=COARSE_BOX_ORDERS)
+#: lighter than the defaults (fewer derivative vectors, shorter refinements, two starts per extension)
+#: so that the five campaigns below take about 40-60 s each
+FAST = StationarySettings(basis_extra=32, derivative_modes=12, refine_iterations=30, starts=2)
+
+
+@pytest.fixture(scope="module")
+def model(coarse_box_model):
+    return coarse_box_model
+
+
+@pytest.fixture(scope="module")
+def ops(model):
+    return Operators.build(model, SENSOR_GRID, EXCITER)
+
+
+# ------------------------------------------------------------------- underfloor equipment
+def test_equipment_on_one_mode_is_the_two_dof_system_and_splits_it_as_the_closed_form():
+    """One structural mode (modal mass 1, omega_s, value a at the mount) with a mass m on a
+    spring k: the accelerance equals the direct 2-DOF solve, its undamped natural
+    frequencies are the roots of det(K - w^2 M) = m w^4 - (k + m w_s^2 + m k a^2) w^2 +
+    k w_s^2, and tuned (k = m w_s^2) they lie sqrt(m a^2) of w_s apart."""
+    w_s, a, phi_s, phi_e = 2 * np.pi * 12.0, 0.01, np.array([[0.008, -0.004]]).T, 0.006
+    m, f_e, z_e, z_s = 400.0, 12.0, 0.02, 0.01
+    k = m * (2 * np.pi * f_e) ** 2
+    c = 2 * z_e * np.sqrt(k * m)
+    f = np.linspace(8.0, 16.0, 4001)
+    H = equipment_accelerance(f, np.array([w_s]), np.array([z_s]), phi_s.T.reshape(2, 1), np.array([phi_e]),
+                              np.array([a]), m, f_e, z_e)
+    for i in (0, 1333, 2000, 4000):  # direct: [w_s^2 - w^2 + i w 2 z_s w_s + k* a^2, -k* a; -k* a, k* - w^2 m]
+        w = 2 * np.pi * f[i]
+        ks = k + 1j * w * c
+        A = np.array([[w_s**2 - w**2 + 2j * z_s * w_s * w + ks * a**2, -ks * a], [-ks * a, ks - w**2 * m]])
+        q = np.linalg.solve(A, [phi_e, 0.0])[0]
+        np.testing.assert_allclose(H[i], -w**2 * phi_s[:, 0] * q, rtol=1e-10)
+    # undamped: m w^4 - (k + m w_s^2 + m k a^2) w^2 + k w_s^2 = 0 (det of K - w^2 M)
+    roots = np.sqrt(np.sort(np.roots([m, -(k + m * w_s**2 + m * k * a**2), k * w_s**2]).real)) / (2 * np.pi)
+    light = equipment_accelerance(f, np.array([w_s]), np.array([1e-4]), phi_s.T.reshape(2, 1), np.array([phi_e]),
+                                  np.array([a]), m, f_e, 1e-4)
+    peaks = f[1:-1][(np.abs(light[1:-1, 0]) > np.abs(light[:-2, 0])) & (np.abs(light[1:-1, 0]) > np.abs(light[2:, 0]))]
+    np.testing.assert_allclose(peaks, roots, atol=2 * (f[1] - f[0]))
+    mu = m * a**2  # tuned equipment: the split is about sqrt(mu) of the frequency
+    assert (roots[1] - roots[0]) / 12.0 == pytest.approx(np.sqrt(mu), rel=0.05)
+
+
+def test_equipment_accelerance_equals_the_truths_rediagonalised_coupled_model():
+    """The point-impedance form (Sherman-Morrison per line) against the truth simulator's
+    coupled modal model (modes + 1 DOF re-diagonalised, the mount damper coupling them)."""
+    n, n_s = 8, len(SENSOR_GRID)
+    rng = np.random.default_rng(3)
+    hz = np.sort(rng.uniform(6.0, 30.0, n))
+    modal = ModalModel({}, hz, rng.uniform(0.01, 0.03, n), ("elastic",) * n, rng.normal(0, 0.01, (n_s, n)),
+                       rng.normal(0, 0.01, n), np.zeros(n))
+    mount = rng.normal(0, 0.01, n)
+    eq = UnderfloorEquipment(600.0, (0.0, 0.8, 1.1), hz[3] * 1.02, 0.05)
+    f = np.linspace(5.0, 35.0, 700)
+    expected = add_equipment(modal, mount, eq).modal.frf(f)
+    got = equipment_accelerance(f, 2 * np.pi * hz, modal.damping_ratio, modal.sensor_shapes, modal.exciter_shape,
+                                mount, eq.mass, eq.frequency_hz, eq.damping_ratio)
+    np.testing.assert_allclose(got, expected, rtol=1e-8, atol=1e-12 * np.abs(expected).max())
+
+
+# ------------------------------------------------------------------ local panel softening
+@pytest.mark.parametrize("panel", ["floor_front", "roof"])
+def test_softened_panel_is_the_reassembled_vehicle_and_the_roof_is_its_factors(model, ops, panel):
+    p = np.array(list(draw_truth_parameters(SETTINGS, np.random.default_rng(5)).values()))
+    ours = Stiffness(p, panel, 4.0).matrix(ops)
+    truth = soften_panel(model, panel, 4.0).stiffness(p)
+    assert scipy.sparse.linalg.norm(ours - truth) <= 1e-12 * scipy.sparse.linalg.norm(truth)
+    if panel == "roof":  # one panel: its softening is the roof factors / divisor
+        q = p.copy()
+        for name in ("roof_membrane", "roof_bending"):
+            q[model.names.index(name)] /= 4.0
+        assert scipy.sparse.linalg.norm(ours - model.stiffness(q)) <= 1e-12 * scipy.sparse.linalg.norm(truth)
+
+
+def test_reduced_model_reproduces_the_truths_accelerance(model, ops):
+    """Modes and exciter static response of the full model on the basis: the accelerance
+    over 6-30 Hz within 0.1 % (median) and 2 % of each channel's rms level (everywhere)
+    of the truth simulator's modal model (all modes to 100 Hz and
+    its residual pseudo-mode) at the same parameters and damping."""
+    params = draw_truth_parameters(SETTINGS, np.random.default_rng(9))
+    truth = truth_modes(params, settings=SETTINGS, model=model)
+    s = StationarySettings()
+    p = np.array([params[n] for n in model.names])
+    red = Reduced.build(ops, Stiffness(p), n_modes=40, n_deriv=s.derivative_modes, extra=s.basis_extra,
+                        below_hz=s.basis_hz)
+    assert red.modes(p).frequency_hz[red.size - s.basis_extra - 2] >= s.basis_hz  # all modes below kept
+    modes = red.modes(p)
+    n = truth.frequency_hz.size - 1
+    np.testing.assert_allclose(modes.frequency_hz[:40], truth.frequency_hz[:40], rtol=1e-9)
+    zeta = np.full(red.size, 0.02)
+    zeta[:min(n, red.size)] = truth.damping_ratio[:min(n, red.size)]
+    f = np.linspace(6.0, 30.0, 500)
+    H = modal_accelerance(f, modes.omega, zeta, modes.sensor_shapes, modes.exciter_shape)
+    Ht = truth.frf(f)
+    rel = np.abs(H - Ht) / np.sqrt(np.mean(np.abs(Ht) ** 2, axis=0))  # against each channel's rms level
+    assert np.median(np.abs(H / Ht - 1)) < 1e-3 and rel.max() < 0.02
+
+
+def test_registry_names_the_stationary_effects_of_the_catalogue():
+    stationary = {n for n, s in EFFECTS.items() if "stationary_excitation" in s.kinds}
+    assert set(EXTENSIONS) == stationary
+    assert all(e.n_params >= 1 and e.description for e in EXTENSIONS.values())
+
+
+# ------------------------------------------------------------------------------ bad input
+def test_refuses_an_in_service_campaign(tiny_campaign):
+    with pytest.raises(InputError, match=r"campaign.toml.*key 'kind'.*stationary_excitation"):
+        diagnose_stationary(open_campaign(tiny_campaign))
+
+
+def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):
+    root = tmp_path / "bad"
+    priors = {**campaign_priors(), "wobble_factor": Prior(1.0, 0.5, 2.0)}
+    meta = CampaignMeta(kind="stationary_excitation", name="bad", vehicle="box", sensors=(EXCITER,) + SENSOR_GRID[:3],
+                        sampling_rate=200.0, priors=priors, excitation=Excitation(EXCITER.name, EXCITER.position))
+    t = np.arange(4000) / 200.0
+    rng = np.random.default_rng(7)
+    with CampaignWriter(root, meta) as w:
+        w.write_run("run_001", {"time": t, EXCITER.name: rng.normal(size=t.size),
+                                **{s.name: rng.normal(size=t.size) for s in SENSOR_GRID[:3]}})
+        w.commit()
+    with pytest.raises(InputError, match=r"key 'priors'.*wobble_factor"):
+        diagnose_stationary(open_campaign(root), model=model)
+
+
+# ------------------------------------------------------------------------ campaigns
+#: seeds never used while developing the diagnosis; each effect at both ends of its range
+CASES = {
+    "equipment_low": (5101, "underfloor_equipment", 0.01),
+    "equipment_high": (5102, "underfloor_equipment", 0.05),
+    "softening_low": (5103, "local_panel_softening", 3.0),
+    "softening_high": (5104, "local_panel_softening", 10.0),
+    "effect_free": (5105, None, None),
+}
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def diagnosed(request, tmp_path_factory, model):
+    seed, name, magnitude = CASES[request.param]
+    root = tmp_path_factory.mktemp("stationary") / request.param
+    effect = None if name is None else EffectChoice(EFFECTS[name], magnitude)
+    truth = synth_excitation(root, seed=seed, settings=SETTINGS, effect=effect, model=model)
+    return request.param, truth, diagnose_stationary(open_campaign(root), model=model, settings=FAST)
+
+
+def test_the_hidden_cause_is_named_with_its_parameters_and_gain(diagnosed, tmp_path):
+    case, truth, result = diagnosed
+    hidden = (truth["effect"] or {}).get("name", "none")
+    assert result["cause"] == hidden, result["evidence"]["summary"]
+    assert result["format"] == "railcal-diagnosis/1" and result["evidence"]["summary"]
+    if hidden == "none":
+        assert result["extension"] is None and result["gain"] is None
+        assert result["evidence"]["heldout_error_mean"] <= FAST.noise_alarm
+        assert all(h["penalised_gain"] < FAST.min_gain for h in result["hypotheses"])
+    else:
+        assert result["gain"]["reduction"] >= 0.3
+        found, eff = result["extension"]["parameters"], truth["effect"]
+        if hidden == "underfloor_equipment":
+            assert found["mounting_frequency_hz"] == pytest.approx(eff["mounting_frequency_hz"], rel=0.05)
+            assert np.hypot(found["mount_x_m"] - eff["position_m"][0], found["mount_y_m"] - eff["position_m"][1]) < 1.5
+            assert found["equipment_mass_kg"] == pytest.approx(eff["equipment_mass_kg"], rel=0.3)
+        else:
+            assert found["panel"] == eff["panel"]
+            if eff["panel"] != "roof":  # the roof's divisor trades against its own factors
+                assert found["rigidity_divisor"] == pytest.approx(eff["magnitude"], rel=0.25)
+    if case in ("equipment_high", "effect_free"):  # the plots and the JSON the command writes
+        paths = plot_stationary_diagnosis(result, tmp_path / "diag")
+        assert [p.name for p in paths] == ["diag_frf.png", "diag_mac.png"] and all(p.stat().st_size for p in paths)
+        public = {k: v for k, v in result.items() if k != "_plot"}
+        assert json.loads(json.dumps(public))["cause"] == hidden
+
+
+def test_heldout_split_is_by_run(diagnosed):
+    _, _, result = diagnosed
+    assert result["split"]["training_runs"] == ["run_001"] and result["split"]["heldout_runs"] == ["run_002"]
