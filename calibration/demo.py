@@ -132,10 +132,11 @@ def _shaker(out: Path, say, progress) -> dict:
     write_identification(ident, out / "shaker_identification.json")
     cal_json = calibration.to_json(ident)
     write_json_atomic(out / "shaker_calibration.json", cal_json)
-    say("8/11 comparing measured and model FRFs")
+    say("8/11 comparing measured and model FRFs; diagnosing the shaker test (box baseline, extensions, held-out run)")
     frf = compare_frf(campaign, cal_json, ident)
     plot_frf_comparison(frf, out / "shaker_frf.png")
     write_json_atomic(out / "shaker_frf.json", frf.to_json())
+    diagnosis = _diagnose_shaker(out, campaign, truth, progress)
     labels = list(truth["frequencies_hz"])
     true_shapes = np.array(truth["mode_shapes"]).T  # (n_sensors, n_modes), sensor order of the campaign
     order = [truth["sensors"].index(s) for s in ident.sensors]
@@ -145,7 +146,18 @@ def _shaker(out: Path, say, progress) -> dict:
         k = int(np.argmax(mac))
         rows.append((m, labels[k], truth["frequencies_hz"][labels[k]], float(mac[k])))
     return {"truth": truth, "ident": ident, "calibration": calibration, "calibration_json": cal_json, "frf": frf,
-            "pairs": rows}
+            "pairs": rows, "diagnosis": diagnosis}
+
+
+def _diagnose_shaker(out: Path, campaign, truth: dict, progress) -> dict:
+    from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
+
+    result = diagnose_stationary(campaign, progress=progress)
+    result["plots"] = [p.name for p in plot_stationary_diagnosis(result, out / "shaker_diagnosis")]
+    result.pop("_plot")
+    result["truth_effect"] = truth["effect"]
+    write_json_atomic(out / "shaker_diagnosis.json", result)
+    return result
 
 
 def _fmus(out: Path, campaign, car_parameters, box_calibration: dict) -> dict:
@@ -258,7 +270,21 @@ def _shaker_report(s: dict) -> str:
         "",
         "![FRF](shaker_frf.png)",
         "",
+        *_shaker_diagnosis_report(s["diagnosis"]),
     ])
+
+
+def _shaker_diagnosis_report(d: dict) -> list[str]:
+    truth = d["truth_effect"]["name"] if d["truth_effect"] else "none"
+    lines = ["### Diagnosis of the shaker test (`railcal diagnose`)", "",
+             f"Cause found: **{d['cause']}** (hidden in the campaign: {truth}); {d['wall_s']:.0f} s. "
+             f"Training {', '.join(d['split']['training_runs'])}; held out {', '.join(d['split']['heldout_runs'])}; "
+             f"{d['split']['measure']}.", ""]
+    lines += [f"- {s}" for s in d["evidence"]["summary"]]
+    lines += ["", "| hypothesis | held-out error reduction | training error (1 = noise) |", "|---|---|---|"]
+    lines += [f"| {h['name']} | {h['gain']:.1%} | {h['training_error_mean']:.2f} |" for h in d["hypotheses"]]
+    lines += ["", *[f"![{p}]({p})" for p in d["plots"]], ""]
+    return lines
 
 
 def _report(truth: dict, result, png_name: str, calibration, validation) -> str:

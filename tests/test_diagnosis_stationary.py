@@ -10,6 +10,7 @@ import pytest
 import scipy.sparse.linalg
 from conftest import COARSE_BOX_ORDERS
 
+from calibration.cli import main
 from calibration.data.campaign import CampaignMeta, CampaignWriter, Excitation, Prior, open_campaign
 from calibration.data.errors import InputError
 from calibration.diagnosis.stationary import (EXTENSIONS, Operators, Reduced, Stiffness, StationarySettings,
@@ -132,7 +133,7 @@ def test_refuses_an_in_service_campaign(tiny_campaign):
         diagnose_stationary(open_campaign(tiny_campaign))
 
 
-def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):
+def _campaign_with_unknown_prior(tmp_path):
     root = tmp_path / "bad"
     priors = {**campaign_priors(), "wobble_factor": Prior(1.0, 0.5, 2.0)}
     meta = CampaignMeta(kind="stationary_excitation", name="bad", vehicle="box", sensors=(EXCITER,) + SENSOR_GRID[:3],
@@ -143,18 +144,31 @@ def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):
         w.write_run("run_001", {"time": t, EXCITER.name: rng.normal(size=t.size),
                                 **{s.name: rng.normal(size=t.size) for s in SENSOR_GRID[:3]}})
         w.commit()
+    return root
+
+
+def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):
     with pytest.raises(InputError, match=r"key 'priors'.*wobble_factor"):
-        diagnose_stationary(open_campaign(root), model=model)
+        diagnose_stationary(open_campaign(_campaign_with_unknown_prior(tmp_path)), model=model)
+
+
+def test_railcal_diagnose_takes_stationary_campaigns_and_exits_2_on_bad_input(tmp_path, capsys):
+    """``railcal diagnose`` dispatches on the campaign's kind; a stationary campaign whose
+    priors name a parameter the box model lacks is refused (exit 2, the key named) and
+    nothing is written."""
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(_campaign_with_unknown_prior(tmp_path)), "--out", str(out), "--quiet"]) == 2
+    assert "wobble_factor" in capsys.readouterr().err and not out.exists()
 
 
 # ------------------------------------------------------------------------ campaigns
 #: seeds never used while developing the diagnosis; each effect at both ends of its range
 CASES = {
-    "equipment_low": (5101, "underfloor_equipment", 0.01),
-    "equipment_high": (5102, "underfloor_equipment", 0.05),
-    "softening_low": (5103, "local_panel_softening", 3.0),
-    "softening_high": (5104, "local_panel_softening", 10.0),
-    "effect_free": (5105, None, None),
+    "equipment_low": (5201, "underfloor_equipment", 0.01),
+    "equipment_high": (5202, "underfloor_equipment", 0.05),
+    "softening_low": (5203, "local_panel_softening", 3.0),
+    "softening_high": (5204, "local_panel_softening", 10.0),
+    "effect_free": (5205, None, None),
 }
 
 
