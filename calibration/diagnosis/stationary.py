@@ -21,8 +21,8 @@ wrong, the cause, the extended model and the held-out gain.
 4. **Hypotheses** (:data:`EXTENSIONS`): ``underfloor_equipment``, a rigid mass on a
    vertical spring-damper under a floor point, coupled to the structure's modes through
    their values at the mount (mass, mounting frequency, damping, mount x and y);
-   ``local_panel_softening``, one roof or floor panel's eight rigidities divided by its own
-   factor (the panel and the divisor). Each is fitted on the training FRFs: a global scan
+   ``local_panel_softening``, one panel's rigidities (any of the carbody's panels: roof,
+   floors, sides, ends) divided by its own factor (the panel and the divisor). Each is fitted on the training FRFs: a global scan
    (mount grid x mounting frequency x mass; panel x divisor) with the baseline held, then
    joint least-squares refinement with the baseline's factors and dampings.
 5. **Decision** on the held-out part. Error of a model on one channel:
@@ -964,7 +964,6 @@ class StationaryExtension:
         return len(self.parameters)
 
 
-SOFTENING_PANELS = ("roof", "floor_front", "floor_middle", "floor_rear")  # one roof panel, three floor panels
 DIVISOR_RANGE = (1.2, 30.0)  # rigidity divisor searched
 DIVISOR_SCAN = (1.5, 2.2, 3.3, 5.0, 7.5, 11.0, 17.0)  # global start
 
@@ -992,7 +991,7 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     p_b, z_b, _ = base.layout.split(base.x)
     p_nom = np.clip([q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)], ctx.low, ctx.high)
     scan = []
-    for panel in SOFTENING_PANELS:
+    for panel in (pn.name for pn in ctx.model.vehicle.panels):  # any panel of the carbody may be the soft one
         red = Reduced.build(ctx.ops, Stiffness(p_nom, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
                             extra=s.basis_extra + 40, below_hz=s.basis_hz, extra_points=tuple(Stiffness(p_nom, panel, d) for d in (1.5, 12.0)))
         lay = Layout(len(p_b), base.family.slots.n, "softening")
@@ -1031,12 +1030,29 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
 MASS_RATIOS = (0.005, 0.01, 0.02, 0.04, 0.07)  # of the carbody mass, scanned
 MASS_RANGE = (0.002, 0.12)  # of the carbody mass, fitted
 MOUNT_DAMPING = (0.01, 0.3)  # mounting damping ratio, fitted (scan at 0.05)
-MOUNT_X = np.arange(-10.5, 10.51, 1.5)  # [m] scan grid on the floor
-MOUNT_Y = (-1.2, -0.6, 0.0, 0.6, 1.2)  # [m]
+MOUNT_STEP = 1.5  # [m] along the car, scan grid of mount points
+MOUNT_SPAN = (0.86, 0.71)  # scan grid's extent as a share of the floor's half length and half width
+
+
+def _floor_extent(model: BoxModel) -> tuple[float, float, float]:
+    """(x_min, x_max, half width) [m] of the floor panels."""
+    floor = [pn for pn in model.vehicle.panels if pn.group == "floor"]
+    x = [pn.centre[0] + sgn * pn.a / 2 for pn in floor for sgn in (-1, 1)]
+    return min(x), max(x), max(pn.b for pn in floor) / 2
+
+
+def _mount_grid(model: BoxModel) -> np.ndarray:
+    """Mount points (x, y) [m] scanned: every MOUNT_STEP along the car, five lines across,
+    over the central MOUNT_SPAN of the floor."""
+    x0, x1, half = _floor_extent(model)
+    c, h = (x0 + x1) / 2, MOUNT_SPAN[0] * (x1 - x0) / 2
+    xs = c + np.arange(-np.floor(h / MOUNT_STEP), np.floor(h / MOUNT_STEP) + 1) * MOUNT_STEP
+    ys = np.linspace(-MOUNT_SPAN[1] * half, MOUNT_SPAN[1] * half, 5)
+    return np.array([(x, y) for x in xs for y in ys])
 
 
 def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
-    """Scan mount point (:data:`MOUNT_X` x :data:`MOUNT_Y`) x mounting frequency (2 % steps
+    """Scan mount point (:func:`_mount_grid`) x mounting frequency (2 % steps
     over the band) x mass (:data:`MASS_RATIOS`) on the baseline's modes and dampings
     (held; every third line), then refine the best ``settings.starts`` distinct candidates
     jointly with the baseline's factors (briefly; the best fully, dampings free too)."""
@@ -1047,7 +1063,8 @@ def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
     w = 2 * np.pi * f[:, None]
     Zi = 1.0 / (modes.omega**2 - w**2 + 2j * zeta * modes.omega * w)  # (n_f, r)
     G_se = (modes.exciter_shape * Zi) @ modes.sensor_shapes.T
-    points = np.array([(x, y) for x in MOUNT_X for y in MOUNT_Y])
+    points = _mount_grid(ctx.model)
+    floor_x0, floor_x1, half = _floor_extent(ctx.model)
     A = base.family.red.mount_rows(points) @ modes.Y  # (n_pts, r)
     f_lo, f_hi = 0.85 * s.band[0], 1.05 * s.band[1]
     fe = np.exp(np.arange(np.log(f_lo), np.log(f_hi), np.log(1.02)))
@@ -1095,9 +1112,9 @@ def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
         lay = Layout(len(p_b), slots.n, "equipment")
         lo, hi = _factor_bounds(ctx, slots.n)
         lo = np.concatenate([lo, np.log([MASS_RANGE[0] * ctx.carbody_mass, f_lo, MOUNT_DAMPING[0]]),
-                             [MOUNT_X[0] - 0.5, -1.5]])
+                             [floor_x0, -half]])
         hi = np.concatenate([hi, np.log([MASS_RANGE[1] * ctx.carbody_mass, f_hi, MOUNT_DAMPING[1]]),
-                             [MOUNT_X[-1] + 0.5, 1.5]])
+                             [floor_x1, half]])
         x0 = np.concatenate([head, np.log(z), x_ext])
         out.append(("underfloor_equipment", lay, slots, x0, lo, hi, None, red))
     return _fit_best(ctx, out)
@@ -1113,7 +1130,7 @@ EXTENSIONS: dict[str, StationaryExtension] = {e.name: e for e in (
         _fit_equipment),
     StationaryExtension(
         "local_panel_softening",
-        "one roof or floor panel with its eight rigidities divided by its own factor",
+        "one carbody panel (roof, floor, side or end) with its rigidities divided by its own factor",
         ("panel", "rigidity_divisor"), _fit_softening),
 )}
 
