@@ -108,14 +108,15 @@ def _diagnose(out: Path, campaign, truth: dict, progress) -> dict:
     return result
 
 
-def _diagnosis_report(d: dict) -> str:
+def _diagnosis_report(d: dict, heading: str = "## Diagnosis (`railcal diagnose`)") -> str:
+    """A report section from a diagnosis result (in-service or stationary test)."""
     truth = d["truth_effect"]["name"] if d["truth_effect"] else "none"
-    lines = ["## Diagnosis (`railcal diagnose`)", "",
+    lines = [heading, "",
              f"Cause found: **{d['cause']}** (hidden in the campaign: {truth}); {d['wall_time_s']:.0f} s. "
-             f"Training runs {', '.join(d['split']['training_runs'])}; held out "
+             f"Training {', '.join(d['split']['training_runs'])}; held out "
              f"{', '.join(d['split']['heldout_runs'])}.", ""]
     lines += [f"- {s}" for s in d["evidence"]["summary"]]
-    lines += ["", "| hypothesis | held-out error reduction (best channel) | channel |", "|---|---|---|"]
+    lines += ["", "| hypothesis | held-out error reduction (all channels) | best channel |", "|---|---|---|"]
     lines += [f"| {h['name']} | {h['gain']:.1%} | {h['best_channel']} |" for h in d["hypotheses"]]
     lines += ["", *[f"![{p}]({p})" for p in d["plots"]], ""]
     return "\n".join(lines)
@@ -153,6 +154,7 @@ def _diagnose_shaker(out: Path, campaign, truth: dict, progress) -> dict:
     from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
 
     result = diagnose_stationary(campaign, progress=progress)
+    result["wall_time_s"] = result["wall_s"]
     result["plots"] = [p.name for p in plot_stationary_diagnosis(result, out / "shaker_diagnosis")]
     result.pop("_plot")
     result["truth_effect"] = truth["effect"]
@@ -270,21 +272,8 @@ def _shaker_report(s: dict) -> str:
         "",
         "![FRF](shaker_frf.png)",
         "",
-        *_shaker_diagnosis_report(s["diagnosis"]),
+        _diagnosis_report(s["diagnosis"], "### Diagnosis of the shaker test (`railcal diagnose`)"),
     ])
-
-
-def _shaker_diagnosis_report(d: dict) -> list[str]:
-    truth = d["truth_effect"]["name"] if d["truth_effect"] else "none"
-    lines = ["### Diagnosis of the shaker test (`railcal diagnose`)", "",
-             f"Cause found: **{d['cause']}** (hidden in the campaign: {truth}); {d['wall_s']:.0f} s. "
-             f"Training {', '.join(d['split']['training_runs'])}; held out {', '.join(d['split']['heldout_runs'])}; "
-             f"{d['split']['measure']}.", ""]
-    lines += [f"- {s}" for s in d["evidence"]["summary"]]
-    lines += ["", "| hypothesis | held-out error reduction | training error (1 = noise) |", "|---|---|---|"]
-    lines += [f"| {h['name']} | {h['gain']:.1%} | {h['training_error_mean']:.2f} |" for h in d["hypotheses"]]
-    lines += ["", *[f"![{p}]({p})" for p in d["plots"]], ""]
-    return lines
 
 
 def _report(truth: dict, result, png_name: str, calibration, validation) -> str:
