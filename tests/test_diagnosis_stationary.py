@@ -164,11 +164,11 @@ def test_railcal_diagnose_takes_stationary_campaigns_and_exits_2_on_bad_input(tm
 # ------------------------------------------------------------------------ campaigns
 #: seeds never used while developing the diagnosis; each effect at both ends of its range
 CASES = {
-    "equipment_low": (5201, "underfloor_equipment", 0.01),
-    "equipment_high": (5202, "underfloor_equipment", 0.05),
-    "softening_low": (5203, "local_panel_softening", 3.0),
-    "softening_high": (5204, "local_panel_softening", 10.0),
-    "effect_free": (5205, None, None),
+    "equipment_low": (5301, "underfloor_equipment", 0.01),
+    "equipment_high": (5302, "underfloor_equipment", 0.05),
+    "softening_low": (5303, "local_panel_softening", 3.0),
+    "softening_high": (5304, "local_panel_softening", 10.0),
+    "effect_free": (5305, None, None),
 }
 
 

@@ -983,8 +983,9 @@ def _extension_start(ctx: _Context, base: Fitted, layout: Layout, red: Reduced, 
 def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     """Global start: every panel x divisor of :data:`DIVISOR_SCAN`, at the baseline's and at
     the nominal factors (the baseline's may have bent to mimic the softening), scored by
-    the training error on one basis per panel spanning the divisors; the best
-    ``settings.starts`` (panel, divisor) starts refined with factors and divisor free, first
+    the training error on one basis per panel spanning the divisors; the best start of
+    each panel whose own factors the baseline pressed to their lower bound and of the
+    ``settings.starts`` best-scoring panels refined with factors and divisor free, first
     on smoothed spectra (continuation), then briefly on the exact residual; the best of
     them fitted fully (dampings free too)."""
     s = ctx.settings
@@ -992,8 +993,12 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     p_nom = np.clip([q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)], ctx.low, ctx.high)
     scan = []
     for panel in (pn.name for pn in ctx.model.vehicle.panels):  # any panel of the carbody may be the soft one
-        red = Reduced.build(ctx.ops, Stiffness(p_nom, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
-                            extra=s.basis_extra + 40, below_hz=s.basis_hz, extra_points=tuple(Stiffness(p_nom, panel, d) for d in (1.5, 12.0)))
+        # the scan's basis spans both factor sets it is evaluated at (the baseline's may be
+        # far from nominal, e.g. a softened roof pushes the roof factors to their bound)
+        red = Reduced.build(ctx.ops, Stiffness(p_b, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
+                            extra=s.basis_extra + 60, below_hz=s.basis_hz,
+                            extra_points=(Stiffness(p_b, panel, 1.5), Stiffness(p_b, panel, 12.0),
+                                          Stiffness(p_nom, panel, 4.0)))
         lay = Layout(len(p_b), base.family.slots.n, "softening")
         fam = Family.make(red, base.family.slots, lay, ctx.default_zeta)
         for p0 in (p_b, p_nom):
@@ -1002,11 +1007,20 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
                 scan.append((_total_error(fam, x, ctx.meas, s.floor), panel, d, p0))
     scan.sort(key=lambda r: r[0])
     ctx.say("panel softening scan: " + ", ".join(f"{pn} /{d:g}: {e:.0f}" for e, pn, d, _ in scan[:4]))
+    # evidence first: a panel whose own factors the baseline drove to their lower bound is
+    # refined whatever its scan score (the baseline's other factors bent around it, so
+    # the scan, which holds them, underrates it); then the best-scoring panels
+    lower = {n.split(" ")[0] for n in _at_bounds(ctx, base) if n.endswith("(lower)")}
+    pressed = {pn.name for pn in ctx.model.vehicle.panels if lower & set(_own_group_factors(ctx.ops, pn.name))}
+    if pressed:
+        ctx.say(f"panel(s) whose own factors sit at their lower bound, refined first: {', '.join(sorted(pressed))}")
+    order = sorted(scan, key=lambda r: (r[1] not in pressed, r[0]))
     starts, seen = [], set()
-    for err, panel, d, p0 in scan:
-        if (panel, d) in seen:
+    for err, panel, d, p0 in order:  # the best divisor of each panel (of each factor set, if pressed)
+        key = (panel, p0 is p_nom) if panel in pressed else panel
+        if key in seen:
             continue
-        seen.add((panel, d))
+        seen.add(key)
         lay0 = Layout(len(p_b), 0, "softening")
         head = np.concatenate([np.log(p0), [np.log(d)]])
         red = _basis(ctx, lay0, head, panel)
@@ -1022,7 +1036,7 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
             x = _least_squares(fam, x, lo, hi, ctx.meas, s.refine_iterations // 2, s.floor, free, smooth=width)
             red = _basis(ctx, lay, x, panel)
         starts.append(("local_panel_softening", lay, slots, x, lo, hi, panel, red))
-        if len(starts) == s.starts:
+        if len(starts) == s.starts + 2 * len(pressed):
             break
     return _fit_best(ctx, starts)
 
