@@ -20,10 +20,6 @@ demo: $(STAMP)
 	$(VENV)/bin/railcal demo --out demo_output
 
 # pytest exits 5 when it collects no test; that is a failure of the suite, not a pass.
-# The suite's linear algebra is many small solves: one BLAS thread each unless the caller
-# says otherwise (threaded OpenBLAS on a loaded 2-core machine ran them 10-100x slower).
-test: export OPENBLAS_NUM_THREADS ?= 1
-test: export OMP_NUM_THREADS ?= 1
 test: $(STAMP)
 	$(PY) -m pytest -q tests; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "pytest collected no tests" >&2; exit 1; fi; exit $$rc
