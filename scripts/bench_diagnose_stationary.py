@@ -102,8 +102,8 @@ def main() -> int:
     if args.only:
         cases = [c for c in cases if (c["effect"] or "none") == args.only]
     order_change = -4 if args.coarse else 0
-    print(f"{len(cases)} campaigns, seeds {cases[0]['seed']}-{cases[-1]['seed']}, {'coarse' if args.coarse else 'full-order'} box "
-          f"model, {args.jobs} job(s)", flush=True)
+    print(f"{len(cases)} campaigns, seeds {cases[0]['seed']}-{cases[-1]['seed']}, "
+          f"{'coarse' if args.coarse else 'full-order'} box model, {args.jobs} job(s)", flush=True)
     t0 = time.perf_counter()
     rows = []
     with multiprocessing.get_context("spawn").Pool(args.jobs, initializer=_init, initargs=(order_change,)) as pool:

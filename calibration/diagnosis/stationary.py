@@ -22,9 +22,10 @@ wrong, the cause, the extended model and the held-out gain.
    vertical spring-damper under a floor point, coupled to the structure's modes through
    their values at the mount (mass, mounting frequency, damping, mount x and y);
    ``local_panel_softening``, one panel's rigidities (any of the carbody's panels: roof,
-   floors, sides, ends) divided by its own factor (the panel and the divisor). Each is fitted on the training FRFs: a global scan
-   (mount grid x mounting frequency x mass; panel x divisor) with the baseline held, then
-   joint least-squares refinement with the baseline's factors and dampings.
+   floors, sides, ends) divided by its own factor (the panel and the divisor). Each is
+   fitted on the training FRFs: a global scan (mount grid x mounting frequency x mass;
+   panel x divisor) with the baseline held, then joint least-squares refinement with the
+   baseline's factors and dampings.
 5. **Decision** on the held-out part. Error of a model on one channel:
 
        E_o = mean over lines in the band of |log(H_model / H_meas)|^2 / (2 (sigma^2 + floor^2))
