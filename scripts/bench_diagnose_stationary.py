@@ -72,7 +72,10 @@ def _case(case: dict) -> dict:
             "gain": result["gain"]["reduction"] if result["gain"] else None,
             "hypotheses": {h["name"]: round(h["gain"], 4) for h in result["hypotheses"]},
             "baseline_heldout_error": result["evidence"]["heldout_error_mean"],
-            "unpaired_modes": len(result["evidence"]["unpaired_modes"]),
+            "unpaired_modes": [{"hz": round(r["identified_hz"], 3), "mac": round(r["mac"], 3),
+                                "heldout_error_near": r["heldout_error_near"]}
+                               for r in result["evidence"]["unpaired_modes"]],
+            "summary": result["evidence"]["summary"],
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
 
