@@ -106,6 +106,8 @@ class StationarySettings:
                              "modes just above the band shape the accelerance inside it")
         if self.basis_extra < 0 or self.derivative_modes < 0:
             raise ValueError("basis_extra and derivative_modes must be >= 0")
+        if not 0 < self.mode_band < 1:
+            raise ValueError(f"mode_band {self.mode_band} must lie in (0, 1)")
         if not self.floor > 0 or not self.min_gain > 0 or not self.noise_alarm > 1:
             raise ValueError("floor and min_gain must be > 0 and noise_alarm > 1")
 
@@ -1193,7 +1195,7 @@ def _heldout(ctx: _Context, fit: Fitted) -> dict:
             "log_error_db": log_error_db(meas, H), "H": H}
 
 
-def _error_near(ctx: _Context, held: dict, hz: float) -> float:
+def _error_near(ctx: _Context, held: dict, hz: float) -> float | None:
     """Mean held-out error (all channels) over the lines within ``mode_band`` of ``hz``
     (None if none lies in the comparison band)."""
     f = ctx.meas_test.frequency
