@@ -1226,37 +1226,29 @@ def _evidence(ctx: _Context, base: Fitted, held: dict, pairs: list[dict], swarm:
     }
 
 
-def _alarms(ev: dict, s: StationarySettings) -> list[str]:
-    out = []
+def _alarms(ev: dict, s: StationarySettings) -> tuple[list[str], list[str]]:
+    """(alarms, notes): what the baseline leaves systematic, and what is reported without
+    alarm. An unpaired identified mode alarms only where the held-out FRF within
+    ``mode_band`` of it is misfitted; one the FRF explains is an identification artefact (a
+    weak or merged mode), one outside the comparison band is not judged."""
+    alarms, notes = [], []
     if ev["heldout_error_mean"] > s.noise_alarm:
         worst = sorted(ev["heldout_error_per_channel"].items(), key=lambda kv: -kv[1])[:3]
-        out.append(f"held-out FRF misfit {ev['heldout_error_mean']:.1f} x the noise on average (> {s.noise_alarm:g}); "
-                   "worst " + ", ".join(f"{n} {v:.1f}" for n, v in worst))
+        alarms.append(f"held-out FRF misfit {ev['heldout_error_mean']:.1f} x the noise on average "
+                      f"(> {s.noise_alarm:g}); worst " + ", ".join(f"{n} {v:.1f}" for n, v in worst))
     for r in ev["unpaired_modes"]:
-        if r["heldout_error_near"] is None or r["heldout_error_near"] <= s.noise_alarm:
-            continue  # outside the comparison band, or the FRF around it is explained: not a misfit
-        out.append(f"identified mode at {r['identified_hz']:.2f} Hz not paired by the model ({_why(r)}); "
-                   f"held-out error within {s.mode_band:.0%} of it {r['heldout_error_near']:.1f} x the noise")
-    return out
-
-
-def _why(r: dict) -> str:
-    return "shares its model partner with another identified mode" if r["shares_partner"] else \
-        f"best model partner MAC {r['mac']:.2f}, {r['error_pct']:+.1f} %"
-
-
-def _notes(ev: dict, s: StationarySettings) -> list[str]:
-    """Unpaired identified modes whose neighbourhood the model's FRF explains within the
-    noise: an identification artefact (a weak or merged mode), reported, not an alarm."""
-    out = []
-    for r in ev["unpaired_modes"]:
-        head = f"identified mode at {r['identified_hz']:.2f} Hz not paired by the model ({_why(r)})"
-        if r["heldout_error_near"] is None:
-            out.append(f"{head}, outside the FRF comparison band {s.band[0]:g}-{s.band[1]:g} Hz: not judged")
-        elif r["heldout_error_near"] <= s.noise_alarm:
-            out.append(f"{head}, but the held-out FRF within {s.mode_band:.0%} of it is explained "
-                       f"({r['heldout_error_near']:.2f} x the noise): taken as an identification artefact")
-    return out
+        why = "shares its model partner with another identified mode" if r["shares_partner"] else \
+            f"best model partner MAC {r['mac']:.2f}, {r['error_pct']:+.1f} %"
+        head, near = f"identified mode at {r['identified_hz']:.2f} Hz not paired by the model ({why})", \
+            r["heldout_error_near"]
+        if near is None:
+            notes.append(f"{head}, outside the FRF comparison band {s.band[0]:g}-{s.band[1]:g} Hz: not judged")
+        elif near <= s.noise_alarm:
+            notes.append(f"{head}, but the held-out FRF within {s.mode_band:.0%} of it is explained "
+                         f"({near:.2f} x the noise): taken as an identification artefact")
+        else:
+            alarms.append(f"{head}; held-out error within {s.mode_band:.0%} of it {near:.1f} x the noise")
+    return alarms, notes
 
 
 # ------------------------------------------------------------------------------------ hypotheses
@@ -1403,10 +1395,10 @@ def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | 
     pairs, mac, model_labels = _mode_pairs(ctx, base)
     ev = _evidence(ctx, base, held, pairs, swarm)
     ok = [h for h in hyps if h["penalised_gain"] >= s.min_gain and h["worst_loss"] <= s.max_loss]
-    alarms = _alarms(ev, s)
+    alarms, notes = _alarms(ev, s)
     best = max(ok, key=lambda h: h["penalised_gain"]) if ok else None
     cause = best["name"] if best else ("unexplained" if alarms else "none")
-    words = _summary(cause, best, alarms, _notes(ev, s), ev, hyps)
+    words = _summary(cause, best, alarms, notes, ev, hyps)
     sensors = ctx.ident.sensors
     plot = {"sensors": sensors, "frequency": ctx.meas_test.frequency, "measured": ctx.meas_test.H,
             "baseline": held["H"], "extension": None if best is None else best["_held"]["H"],
