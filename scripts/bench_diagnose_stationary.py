@@ -3,16 +3,20 @@ campaigns with a hidden effect, magnitudes drawn across each range, and effect-f
 
 For each case: ``synth excitation`` (the truth simulator, default settings: 2 runs of
 300 s) with ``underfloor_equipment`` (mass ratio drawn uniformly in 0.01-0.05),
-``local_panel_softening`` (divisor drawn uniformly in 3-10) or no effect, then
+``local_panel_softening`` (divisor drawn uniformly in 3-10), no effect, or an effect
+outside the catalogue, ``sensor_bracket`` (one accelerometer on a resilient bracket,
+natural frequency drawn uniformly in 10-28 Hz; it must come out ``unexplained``), then
 :func:`calibration.diagnosis.stationary.diagnose_stationary` against the effect-free box
 model. Seeds run from ``--start`` (2000) upwards, one per campaign; magnitudes come from
 ``numpy.random.default_rng(start)``. Prints one line per campaign, then the confusion
 matrix (rows: hidden effect, columns: diagnosed cause), the right-cause rate per effect,
-the false-alarm rate on effect-free campaigns, the held-out error reduction where the
-cause is right, and the wall time per diagnosis.
+the false-alarm rate on effect-free campaigns, the share of the uncatalogued campaigns
+answered ``unexplained``, the held-out error reduction where the cause is right, and the
+wall time per diagnosis.
 
 Targets (issue 7): right cause >= 90 % for every effect, false alarms <= 10 %, held-out
-error reduced >= 30 % whenever the cause is right.
+error reduced >= 30 % whenever the cause is right; an effect outside the catalogue never
+under a wrong name (``unexplained``).
 
     python scripts/bench_diagnose_stationary.py [--seeds 10] [--start 2000] [--jobs 2] [--coarse] [--only NAME]
 
@@ -38,6 +42,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 EFFECT_NAMES = ("underfloor_equipment", "local_panel_softening")
+OUTSIDE = "sensor_bracket"  # outside the catalogue: must be `unexplained`
 CAUSES = EFFECT_NAMES + ("none", "unexplained")
 
 _MODEL = {}  # per worker process: the assembled box model, built once by _init
@@ -53,11 +58,12 @@ def _init(order_change: int) -> None:
 def _case(case: dict) -> dict:
     from calibration.data.campaign import open_campaign
     from calibration.diagnosis.stationary import diagnose_stationary
-    from calibration.truth.effects import EFFECTS, EffectChoice
+    from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice
     from calibration.truth.excitation import synth_excitation
 
     settings, model = _MODEL["settings"], _MODEL["model"]
-    effect = None if case["effect"] is None else EffectChoice(EFFECTS[case["effect"]], case["magnitude"])
+    effect = None if case["effect"] is None else \
+        EffectChoice(EFFECTS.get(case["effect"]) or UNCATALOGUED[case["effect"]], case["magnitude"])
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / f"shaker_{case['seed']}"
         t0 = time.perf_counter()
@@ -66,7 +72,8 @@ def _case(case: dict) -> dict:
         result = diagnose_stationary(open_campaign(root), model=model)
         t2 = time.perf_counter()
     eff = truth["effect"] or {}
-    hidden = {k: eff[k] for k in ("panel", "position_m", "mounting_frequency_hz", "equipment_mass_kg") if k in eff}
+    hidden = {k: eff[k] for k in ("panel", "position_m", "mounting_frequency_hz", "equipment_mass_kg", "sensor",
+                                  "frequency_hz") if k in eff}
     return {**case, "cause": result["cause"], "hidden": hidden,
             "found": result["extension"]["parameters"] if result["extension"] else None,
             "gain": result["gain"]["reduction"] if result["gain"] else None,
@@ -86,11 +93,11 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--coarse", action="store_true", help="coarse box model (every panel order - 4), as the tests")
     ap.add_argument("--out", type=Path, help="write every case's result to this JSON file")
-    ap.add_argument("--only", choices=EFFECT_NAMES + ("none",),
+    ap.add_argument("--only", choices=EFFECT_NAMES + ("none", OUTSIDE),
                     help="run only this effect's campaigns (same seeds and magnitudes as in the whole bench)")
     args = ap.parse_args()
 
-    from calibration.truth.effects import EFFECTS
+    from calibration.truth.effects import EFFECTS, UNCATALOGUED
 
     rng = np.random.default_rng(args.start)
     cases, seed = [], args.start
@@ -101,6 +108,9 @@ def main() -> int:
             seed += 1
     for _ in range(args.seeds):
         cases.append({"effect": None, "magnitude": None, "seed": seed})
+        seed += 1
+    for mag in rng.uniform(*UNCATALOGUED[OUTSIDE].magnitude_range, args.seeds):  # drawn last: earlier seeds unchanged
+        cases.append({"effect": OUTSIDE, "magnitude": float(mag), "seed": seed})
         seed += 1
     if args.only:
         cases = [c for c in cases if (c["effect"] or "none") == args.only]
@@ -121,7 +131,7 @@ def main() -> int:
     rows.sort(key=lambda r: r["seed"])
     print("\nconfusion matrix (rows: hidden effect; columns: diagnosed cause)")
     print(f"{'':>24}" + "".join(f"{c:>24}" for c in CAUSES))
-    for hidden in EFFECT_NAMES + (None,):
+    for hidden in EFFECT_NAMES + (None, OUTSIDE):
         sel = [r for r in rows if r["effect"] == hidden]
         if not sel:
             continue
@@ -143,6 +153,12 @@ def main() -> int:
     ok &= len(alarms) <= 0.1 * len(free)
     if free:
         print(f"effect-free: false alarms {len(alarms)}/{len(free)} = {len(alarms) / len(free):.0%} (target <= 10 %)")
+    outside = [r for r in rows if r["effect"] == OUTSIDE]
+    if outside:
+        named = [r for r in outside if r["cause"] != "unexplained"]
+        ok &= not named
+        print(f"{OUTSIDE} (outside the catalogue): unexplained {len(outside) - len(named)}/{len(outside)}, under a "
+              f"wrong name {len(named)} (target 0)")
     d = np.array([r["diagnose_s"] for r in rows])
     print(f"wall time per diagnosis: median {np.median(d):.0f} s, max {d.max():.0f} s; synthesis median "
           f"{np.median([r['synth_s'] for r in rows]):.0f} s; whole bench {wall:.0f} s with {args.jobs} job(s)")

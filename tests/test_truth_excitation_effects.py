@@ -1,5 +1,6 @@
-"""Hidden effects of the stationary excitation test: underfloor equipment and a softened
-panel are the physics they claim to be, and the campaigns carry them.
+"""Hidden effects of the stationary excitation test: underfloor equipment, a softened panel
+and (outside the catalogue) a sensor on a resilient bracket are the physics they claim to
+be, and the campaigns carry them.
 
 A coarse box model (every panel order - 4) keeps the file fast; the physics checked is the
 same at full order."""
@@ -14,13 +15,15 @@ import scipy.sparse.linalg
 from conftest import COARSE_BOX_ORDERS
 
 from calibration.data.campaign import open_campaign
+from calibration.data.errors import InputError
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.reduced import full_modes
-from calibration.truth.effects import EFFECTS, EffectChoice, EffectSpec, parse_effect
-from calibration.truth.excitation import (EQUIPMENT_DETUNING, EQUIPMENT_X, EQUIPMENT_Y, EXCITER, SENSOR_GRID,
-                                          SOFTENING_PANELS, ExcitationSettings, ModalModel, UnderfloorEquipment,
-                                          add_equipment, carbody_mass, draw_truth_parameters, mount_point,
-                                          soften_panel, synth_excitation, truth_model, truth_modes)
+from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, EffectSpec, parse_effect
+from calibration.truth.excitation import (BRACKET_CLEARANCE, BRACKET_DAMPING, EQUIPMENT_DETUNING, EQUIPMENT_X,
+                                          EQUIPMENT_Y, EXCITER, SENSOR_GRID, SOFTENING_PANELS, ExcitationSettings,
+                                          ModalModel, SensorBracket, UnderfloorEquipment, add_equipment,
+                                          carbody_mass, draw_truth_parameters, mount_point, soften_panel,
+                                          synth_excitation, truth_model, truth_modes)
 
 SETTINGS = ExcitationSettings(runs=1, duration=60.0, order_change=COARSE_BOX_ORDERS)
 MOUNT = (-3.3, -0.8, 1.1)  # [m] an off-centre floor point for the physics tests
@@ -282,6 +285,60 @@ def test_softening_campaign_names_the_panel_and_reads_back(softening_campaign, m
     np.testing.assert_allclose(f, truth["modes_kept"]["frequencies_hz"], rtol=1e-12)
     # the same vehicle parameters as the effect-free campaign of the seed
     assert truth["parameters"] == draw_truth_parameters(SETTINGS, np.random.default_rng(2))
+
+
+# ------------------------------------------------- sensor on a bracket (outside the catalogue)
+def test_a_bracketed_sensor_reads_the_floor_through_the_base_excited_oscillator(model, parameters):
+    """The state space with the bracket in series: the bracketed channel's accelerance is
+    the floor's times T = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2) (1 at low
+    frequency, 1 / (2 zeta) sqrt(1 + 4 zeta^2) at w, falling as 2 zeta w / s well above),
+    the other channels are untouched."""
+    modal = truth_modes(parameters, settings=SETTINGS, model=model)
+    br = SensorBracket("acc_f07_r", 17.0, 0.04)
+    ss = br.in_series(modal.state_space())
+    f = np.array([6.0, 11.3, 17.0, 24.9, 45.0])
+    s = 2j * np.pi * f[:, None, None]
+    H = np.linalg.solve(s * np.eye(ss.A.shape[0]) - ss.A, np.broadcast_to(ss.B, (f.size, *ss.B.shape)))
+    H = (ss.C @ H)[..., 0] + ss.D[:, 0]
+    Hs = modal.frf(f)
+    k = ss.outputs.index("acc_f07_r")
+    others = np.arange(len(SENSOR_GRID)) != k
+    np.testing.assert_allclose(H[:, others], Hs[:, others], rtol=1e-8)
+    np.testing.assert_allclose(H[:, k], Hs[:, k] * br.transmissibility(f), rtol=1e-8)
+    assert abs(br.transmissibility(17.0)) == pytest.approx(np.sqrt(1 + 4 * 0.04**2) / (2 * 0.04))
+    assert abs(br.transmissibility(0.01)) == pytest.approx(1.0, abs=1e-6)
+    assert abs(br.transmissibility(17000.0)) == pytest.approx(2 * 0.04 * 17.0 / 17000.0, rel=1e-3)
+    with pytest.raises(ValueError, match="no sensor 'acc_x'"):
+        SensorBracket("acc_x", 17.0, 0.04)
+
+
+def test_bracket_campaign_changes_one_channel_by_its_transmissibility(tmp_path, model):
+    """Outside the catalogue (the CLI does not offer it): the truth file names the sensor,
+    away from the exciter; that channel's H1 is the truth's accelerance times T, and every
+    other channel is the effect-free campaign's of the same seed."""
+    with pytest.raises(InputError, match="unknown effect 'sensor_bracket'"):
+        parse_effect("sensor_bracket=20", "stationary_excitation")
+    effect = EffectChoice(UNCATALOGUED["sensor_bracket"], 15.0)
+    settings = replace(SETTINGS, duration=120.0)
+    truth = synth_excitation(tmp_path / "br", seed=4, settings=settings, effect=effect, model=model)
+    plain = synth_excitation(tmp_path / "plain", seed=4, settings=settings, model=model)
+    e = truth["effect"]
+    assert e["frequency_hz"] == 15.0 and BRACKET_DAMPING[0] <= e["damping_ratio"] <= BRACKET_DAMPING[1]
+    pos = next(s.position for s in SENSOR_GRID if s.name == e["sensor"])
+    assert np.hypot(pos[0] - EXCITER.position[0], pos[1] - EXCITER.position[1]) >= BRACKET_CLEARANCE
+    assert truth["frequencies_hz"] == plain["frequencies_hz"]  # the structure is unchanged
+    a, b = open_campaign(tmp_path / "br").read_run("run_001"), open_campaign(tmp_path / "plain").read_run("run_001")
+    for name in truth["sensors"]:
+        if name != e["sensor"]:
+            np.testing.assert_allclose(a.channels[name], b.channels[name], rtol=1e-6, atol=1e-9)
+    kw = {"fs": 200.0, "nperseg": 1024}
+    f, Gff = scipy.signal.welch(a.channels["exciter_force"], **kw)
+    _, Gfy = scipy.signal.csd(a.channels["exciter_force"], a.channels[e["sensor"]], **kw)
+    k = truth["sensors"].index(e["sensor"])
+    H = truth_model(truth, model=model).frf(f)[:, k] * SensorBracket(e["sensor"], 15.0, e["damping_ratio"]) \
+        .transmissibility(f)
+    band = (f > 8) & (f < 40)
+    assert np.median(np.abs(Gfy[band] / Gff[band] / H[band] - 1)) < 0.05
 
 
 def test_effects_for_other_campaign_kinds_are_refused(tmp_path, model):

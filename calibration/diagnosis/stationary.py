@@ -17,7 +17,8 @@ wrong, the cause, the extended model and the held-out gain.
 3. **Evidence** from the baseline: held-out FRF misfit per channel (normalised below;
    FRAC; rms log-magnitude error in dB), the identified modes against the model's (paired
    by MAC: frequency errors, MAC deficits, identified modes the model cannot pair: a
-   split), factors at their bounds.
+   split), factors at their bounds; a misfit confined to one channel (``one_channel`` of
+   the excess over the noise) is said to point at that measurement point.
 4. **Hypotheses** (:data:`EXTENSIONS`): ``underfloor_equipment``, a rigid mass on a
    vertical spring-damper under a floor point, coupled to the structure's modes through
    their values at the mount (mass, mounting frequency, damping, mount x and y);
@@ -94,6 +95,7 @@ class StationarySettings:
     mac_alarm: float = 0.8  # an identified mode pairs with a model mode if MAC >= this ...
     frequency_alarm: float = 0.03  # ... and their frequencies differ by less than this (relative)
     mode_band: float = 0.03  # an unpaired mode alarms if the held-out error within this (relative) of it > noise_alarm
+    one_channel: float = 0.5  # share of the excess misfit on one channel above which the evidence says so
 
     def __post_init__(self):
         lo, hi = self.band
@@ -108,6 +110,8 @@ class StationarySettings:
             raise ValueError("basis_extra and derivative_modes must be >= 0")
         if not 0 < self.mode_band < 1:
             raise ValueError(f"mode_band {self.mode_band} must lie in (0, 1)")
+        if not 0 < self.one_channel <= 1:
+            raise ValueError(f"one_channel {self.one_channel} must lie in (0, 1]")
         if not self.floor > 0 or not self.min_gain > 0 or not self.noise_alarm > 1:
             raise ValueError("floor and min_gain must be > 0 and noise_alarm > 1")
 
@@ -1233,9 +1237,16 @@ def _alarms(ev: dict, s: StationarySettings) -> tuple[list[str], list[str]]:
     weak or merged mode), one outside the comparison band is not judged."""
     alarms, notes = [], []
     if ev["heldout_error_mean"] > s.noise_alarm:
-        worst = sorted(ev["heldout_error_per_channel"].items(), key=lambda kv: -kv[1])[:3]
+        worst = sorted(ev["heldout_error_per_channel"].items(), key=lambda kv: -kv[1])
         alarms.append(f"held-out FRF misfit {ev['heldout_error_mean']:.1f} x the noise on average "
-                      f"(> {s.noise_alarm:g}); worst " + ", ".join(f"{n} {v:.1f}" for n, v in worst))
+                      f"(> {s.noise_alarm:g}); worst " + ", ".join(f"{n} {v:.1f}" for n, v in worst[:3]))
+        excess = np.array([max(v - 1.0, 0.0) for _, v in worst])
+        share = excess[0] / excess.sum()
+        if share >= s.one_channel:
+            alarms.append(f"the misfit is confined to one channel: {worst[0][0]} carries {share:.0%} of the excess "
+                          "over the noise, where a change of the structure's modes would show at many points; "
+                          "it points at that measurement point (the sensor's mounting or calibration, or a "
+                          "local feature there)")
     for r in ev["unpaired_modes"]:
         why = "shares its model partner with another identified mode" if r["shares_partner"] else \
             f"best model partner MAC {r['mac']:.2f}, {r['error_pct']:+.1f} %"

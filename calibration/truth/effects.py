@@ -87,11 +87,15 @@ EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
 #: Effects outside the catalogue: the truth simulator can hide them (tests and the
 #: diagnosis bench build an :class:`EffectChoice` directly), the CLI does not offer them and
 #: the diagnosis has no extension for them, so they must come out as ``unexplained``.
-#: ``bogie_equipment``: equipment of MAGNITUDE kg resiliently mounted on the leading
-#: bogie's frame 0.6 m ahead of its centre, mounting frequency drawn in 20-30 Hz, damping 4 %.
+#: ``bogie_equipment`` (in service): equipment of MAGNITUDE kg resiliently mounted on the
+#: leading bogie's frame 0.6 m ahead of its centre, mounting frequency drawn in 20-30 Hz,
+#: damping 4 %. ``sensor_bracket`` (stationary test): one floor accelerometer (drawn) on a
+#: resilient bracket of natural frequency MAGNITUDE Hz, damping ratio drawn in 3-6 %.
 UNCATALOGUED: dict[str, EffectSpec] = {s.name: s for s in (
     EffectSpec("bogie_equipment", _IN, (250.0, 600.0), 400.0, "kg",
                "resiliently mounted equipment on the leading bogie frame (outside the catalogue)"),
+    EffectSpec("sensor_bracket", _EX, (10.0, 28.0), 20.0, "Hz",
+               "one floor accelerometer on a resilient bracket of this natural frequency (outside the catalogue)"),
 )}
 
 

@@ -61,6 +61,18 @@ is unchanged and the same seed draws the same vehicle parameters with or without
   panel's properties (:func:`soften_panel`); the stiffness factors of its group still act
   on it. The roof is a single panel, so its softening equals roof_membrane and
   roof_bending factors / MAGNITUDE; a floor panel's cannot be expressed by the factors.
+
+Outside the catalogue (:data:`calibration.truth.effects.UNCATALOGUED`; the diagnosis has
+no extension for it and must answer ``unexplained``):
+
+* ``sensor_bracket``: one floor accelerometer (drawn among :data:`SENSOR_GRID`, not the
+  two next to the exciter) sits on a resilient bracket, a base-excited oscillator of
+  natural frequency MAGNITUDE and damping ratio drawn in 3-6 % between the floor point and
+  the sensor: that channel records the floor's acceleration through the transmissibility
+  T(s) = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2) (:class:`SensorBracket`), appended
+  to the modal state space in series, so the simulation stays exact. The structure is
+  unchanged; :func:`truth_model` returns it (the bracket is the measurement's, in the
+  truth file's ``effect``).
 """
 from __future__ import annotations
 
@@ -359,6 +371,57 @@ EQUIPMENT_DETUNING = 0.04  #: mounting frequency = tuned mode's x (1 + U(-0.04, 
 EQUIPMENT_DAMPING = 0.05  #: mount damping ratio c_e / (2 sqrt(k_e m_e))
 
 
+BRACKET_DAMPING = (0.03, 0.06)  #: sensor bracket damping ratio, drawn uniformly
+BRACKET_CLEARANCE = 2.0  #: [m] the bracketed sensor is at least this far from the exciter (so its FRF is not the drive point's)
+
+
+@dataclass(frozen=True)
+class SensorBracket:
+    """An accelerometer on a resilient bracket (outside the catalogue): a base-excited
+    oscillator between the floor point and the sensor, so the channel reads the floor's
+    acceleration through T(s) = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2). SI units."""
+
+    sensor: str  # the channel of :data:`SENSOR_GRID` on the bracket
+    frequency_hz: float  # [Hz] w / 2 pi (on a rigid floor)
+    damping_ratio: float  # [-]
+
+    def __post_init__(self):
+        if self.sensor not in [s.name for s in SENSOR_GRID]:
+            raise ValueError(f"no sensor {self.sensor!r} in the sensor grid")
+        if not (self.frequency_hz > 0 and self.damping_ratio > 0):
+            raise ValueError(f"a bracket needs frequency_hz > 0 and damping_ratio > 0; got {self.frequency_hz} Hz, "
+                             f"{self.damping_ratio}")
+
+    def transmissibility(self, f) -> np.ndarray:
+        """T(i 2 pi f): the sensor's acceleration over the floor point's [-]."""
+        s, w, z = 2j * np.pi * np.asarray(f, float), 2 * np.pi * self.frequency_hz, self.damping_ratio
+        return (2 * z * w * s + w**2) / (s**2 + 2 * z * w * s + w**2)
+
+    def in_series(self, ss: StateSpace) -> StateSpace:
+        """``ss`` with the bracket between its output ``sensor`` and what is measured: two
+        states xi (xi1' = xi2, xi2' = -w^2 xi1 - 2 zeta w xi2 + a) driven by the floor's
+        acceleration a = C_k x + D_k u; the channel reads w^2 xi1 + 2 zeta w xi2."""
+        k = ss.outputs.index(self.sensor)
+        w, z = 2 * np.pi * self.frequency_hz, self.damping_ratio
+        n = ss.A.shape[0]
+        Ab, Bb, Cb = np.array([[0.0, 1.0], [-w**2, -2 * z * w]]), np.array([[0.0], [1.0]]), np.array([w**2, 2 * z * w])
+        A = np.block([[ss.A, np.zeros((n, 2))], [Bb @ ss.C[k:k + 1], Ab]])
+        B = np.vstack([ss.B, Bb @ ss.D[k:k + 1]])
+        C = np.hstack([ss.C, np.zeros((ss.C.shape[0], 2))])
+        C[k] = np.concatenate([np.zeros(n), Cb])
+        D = ss.D.copy()
+        D[k] = 0.0
+        return StateSpace(A, B, C, D, ss.outputs, ss.inputs)
+
+
+def draw_bracket(rng: np.random.Generator, frequency_hz: float, exciter=EXCITER) -> SensorBracket:
+    """The bracketed sensor (uniformly among those at least :data:`BRACKET_CLEARANCE` from
+    the exciter) and its damping."""
+    far = [s.name for s in SENSOR_GRID
+           if np.hypot(s.position[0] - exciter.position[0], s.position[1] - exciter.position[1]) >= BRACKET_CLEARANCE]
+    return SensorBracket(far[int(rng.integers(len(far)))], frequency_hz, float(rng.uniform(*BRACKET_DAMPING)))
+
+
 def carbody_mass(model: BoxModel) -> float:
     """Carbody mass [kg]: the panels' areal masses and the masses carried on them."""
     return float(sum(pn.mass for pn in model.vehicle.panels) + sum(pm.mass for pm in model.vehicle.masses))
@@ -520,15 +583,18 @@ def anti_alias_sos(settings: ExcitationSettings) -> np.ndarray:
     return scipy.signal.butter(settings.anti_alias_order, settings.anti_alias_hz, fs=settings.fs_sim, output="sos")
 
 
-def simulate_run(modal: ModalModel, settings: ExcitationSettings, rng: np.random.Generator) -> tuple[dict, dict]:
+def simulate_run(modal: ModalModel, settings: ExcitationSettings, rng: np.random.Generator,
+                 bracket: SensorBracket | None = None) -> tuple[dict, dict]:
     """One test run: columns ``time`` [s], ``exciter_force`` [N] and the accelerometers
-    [m/s^2] at ``settings.fs``, and the run's truth (force rms, offsets)."""
+    [m/s^2] at ``settings.fs``, and the run's truth (force rms, offsets). ``bracket``: a
+    sensor on a resilient bracket (outside the catalogue), in series with its channel."""
     step = round(settings.fs_sim / settings.fs)
     n_pre = round(settings.pre_roll * settings.fs) * step
     n_out = round(settings.run_duration * settings.fs)
     n = n_pre + n_out * step
     force = band_random(n, settings.fs_sim, settings.band, settings.force_rms, rng)
-    sim = ModalSimulator(modal.state_space(), 1.0 / settings.fs_sim)
+    ss = modal.state_space()
+    sim = ModalSimulator(ss if bracket is None else bracket.in_series(ss), 1.0 / settings.fs_sim)
     acc = np.vstack([sim.step_chunk(force[a:a + settings.chunk, None]) for a in range(0, n, settings.chunk)])
     n_s = len(SENSOR_GRID)
     offsets = np.concatenate([[rng.uniform(-settings.force_offset, settings.force_offset)],
@@ -557,6 +623,8 @@ def _settings_from_json(d: Mapping) -> ExcitationSettings:
 def truth_model(truth: Mapping, *, model: BoxModel | None = None) -> ModalModel:
     """The system a truth file of :func:`synth_excitation` says was simulated, hidden
     effect included, rebuilt exactly (same modes, damping, shapes at :data:`SENSOR_GRID`).
+    A sensor bracket is the measurement's, not the system's: the structure is returned
+    (the bracketed channel reads its accelerance times :meth:`SensorBracket.transmissibility`).
     ``model``: the assembled vehicle without effect, built from the file's settings when
     not given."""
     settings = _settings_from_json(truth["settings"])
@@ -636,7 +704,8 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
     ``out.truth.json``; returns the truth. ``model``: the assembled vehicle (built from
     ``settings`` when not given; pass it to reuse one assembly over many seeds).
 
-    ``effect``: a hidden effect of the catalogue for stationary tests (module docstring).
+    ``effect``: a hidden effect for stationary tests, of the catalogue or outside it
+    (module docstring).
     ``truth["effect"]`` is then ``effect.to_json()`` and the drawn details:
 
     * underfloor equipment: mass, carbody mass, mount position and panel, mounting
@@ -649,14 +718,17 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
       mode's kinetic energy share in the equipment (>= 1 %), the listing without the
       equipment, and the structure's modal damping (to rebuild the truth, :func:`truth_model`);
     * panel softening: the panel, its group and area, the unsoftened vehicle's modes and
-      each listed mode's frequency change against its MAC-paired unsoftened mode.
+      each listed mode's frequency change against its MAC-paired unsoftened mode;
+    * sensor bracket (outside the catalogue): the sensor, the bracket's frequency and
+      damping ratio, and |T| at its frequency.
 
     The truth lists the simulated system's poles: with the equipment the damping is not
     modal, so frequencies are |s| / 2 pi and ratios -Re(s) / |s| (undamped shapes)."""
     if effect is not None and "stationary_excitation" not in effect.spec.kinds:
         raise ValueError(f"effect {effect.spec.name} is for {', '.join(effect.spec.kinds)} campaigns, "
                          "not stationary excitation tests")
-    if effect is not None and effect.spec.name not in ("underfloor_equipment", "local_panel_softening"):
+    if effect is not None and effect.spec.name not in ("underfloor_equipment", "local_panel_softening",
+                                                       "sensor_bracket"):
         raise NotImplementedError(f"effect {effect.spec.name} is registered but not simulated")
     out = Path(out)
     g = GEOMETRY
@@ -675,8 +747,13 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         model = build_model(settings) if model is None else model
         effect_rng = np.random.default_rng([seed, EFFECT_STREAM])  # the effect's own draws
         name = None if effect is None else effect.spec.name
-        truth_vehicle, mounts = model, ()
-        if name == "local_panel_softening":
+        truth_vehicle, mounts, bracket = model, (), None
+        if name == "sensor_bracket":
+            bracket = draw_bracket(effect_rng, effect.magnitude)
+            if progress:
+                progress(f"{bracket.sensor} on a bracket: {bracket.frequency_hz:.2f} Hz, damping "
+                         f"{bracket.damping_ratio:.3f}")
+        elif name == "local_panel_softening":
             panel = model.panel(SOFTENING_PANELS[int(effect_rng.integers(len(SOFTENING_PANELS)))])
             truth_vehicle = soften_panel(model, panel.name, effect.magnitude)
             if progress:
@@ -713,10 +790,14 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         elif name == "local_panel_softening":
             unsoftened = truth_modes(parameters, settings=settings, model=model)
             details = _softening_record(modal, unsoftened, panel, settings.truth_band_hz)
+        elif name == "sensor_bracket":
+            details = {"sensor": bracket.sensor, "frequency_hz": bracket.frequency_hz,
+                       "damping_ratio": bracket.damping_ratio,
+                       "peak_transmissibility": float(np.abs(bracket.transmissibility(bracket.frequency_hz)))}
         runs = []
         for k in range(settings.runs):
             run_id = f"run_{k + 1:03d}"
-            cols, info = simulate_run(modal, settings, rng)
+            cols, info = simulate_run(modal, settings, rng, bracket)
             w.write_run(run_id, cols)
             runs.append({"run_id": run_id, **info})
             if progress:
