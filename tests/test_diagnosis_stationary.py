@@ -225,6 +225,9 @@ def test_the_hidden_cause_is_named_with_its_parameters_and_gain(diagnosed, tmp_p
         assert all(h["penalised_gain"] < FAST.min_gain for h in result["hypotheses"])
         sensor = truth["effect"]["sensor"]
         assert any(f"confined to one channel: {sensor}" in line for line in summary), summary
+        rest = result["evidence"]["without_channel"]  # calibrated without it, the other channels are explained
+        assert rest["channel"] == sensor and rest["channels"] == len(SENSOR_GRID) - 1
+        assert rest["heldout_error_mean"] <= FAST.noise_alarm < result["evidence"]["heldout_error_mean"]
     elif hidden == "none":
         assert result["extension"] is None and result["gain"] is None
         assert result["evidence"]["heldout_error_mean"] <= FAST.noise_alarm
