@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from calibration.data.campaign import open_campaign  # noqa: E402
 from calibration.diagnosis.diagnose import diagnose  # noqa: E402
-from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice  # noqa: E402
+from calibration.truth.effects import EFFECTS, EffectChoice, effect_spec  # noqa: E402
 from calibration.truth.in_service import InServiceSettings, synth_in_service  # noqa: E402
 from calibration.truth.track import LineSpec  # noqa: E402
 
@@ -41,8 +41,7 @@ OUTSIDE = "bogie_equipment"
 
 def run_case(case: dict) -> dict:
     root = Path(case["folder"]) / f"c{case['seed']}"
-    spec = EFFECTS.get(case["effect"]) or UNCATALOGUED.get(case["effect"])
-    effect = None if spec is None else EffectChoice(spec, case["magnitude"])
+    effect = None if case["effect"] == "none" else EffectChoice(effect_spec(case["effect"]), case["magnitude"])
     settings = InServiceSettings(journeys=case["journeys"], line=LineSpec(length=case["length_km"] * 1000.0),
                                  carbody_sensors=True)
     t0 = time.perf_counter()
@@ -72,7 +71,7 @@ def main(argv=None) -> int:
     folder = tempfile.mkdtemp(prefix="railcal_bench_diagnose_")
     cases, seed = [], args.first_seed
     for name in IN_SERVICE + ["none", OUTSIDE]:
-        spec = EFFECTS.get(name) or UNCATALOGUED.get(name)
+        spec = None if name == "none" else effect_spec(name)
         for _ in range(args.seeds):
             mag = None if spec is None else float(rng.uniform(*spec.magnitude_range))
             cases.append({"effect": name, "magnitude": mag, "seed": seed, "journeys": args.journeys,

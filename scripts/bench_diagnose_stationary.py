@@ -58,12 +58,11 @@ def _init(order_change: int) -> None:
 def _case(case: dict) -> dict:
     from calibration.data.campaign import open_campaign
     from calibration.diagnosis.stationary import diagnose_stationary
-    from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice
+    from calibration.truth.effects import EffectChoice, effect_spec
     from calibration.truth.excitation import synth_excitation
 
     settings, model = _MODEL["settings"], _MODEL["model"]
-    effect = None if case["effect"] is None else \
-        EffectChoice(EFFECTS.get(case["effect"]) or UNCATALOGUED[case["effect"]], case["magnitude"])
+    effect = None if case["effect"] is None else EffectChoice(effect_spec(case["effect"]), case["magnitude"])
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / f"shaker_{case['seed']}"
         t0 = time.perf_counter()

@@ -18,7 +18,7 @@ from calibration.data.errors import InputError
 from calibration.diagnosis.stationary import (EXTENSIONS, Operators, Reduced, Stiffness, StationarySettings, _alarms,
                                               diagnose_stationary, equipment_accelerance, modal_accelerance,
                                               plot_stationary_diagnosis)
-from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice
+from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, effect_spec
 from calibration.truth.excitation import (EXCITER, SENSOR_GRID, ExcitationSettings, ModalModel, UnderfloorEquipment,
                                           add_equipment, campaign_priors, draw_truth_parameters, soften_panel,
                                           synth_excitation, truth_modes)
@@ -209,7 +209,7 @@ ROUND_OFF_SENSITIVE = pytest.mark.xfail(
 def diagnosed(request, tmp_path_factory, model):
     seed, name, magnitude = CASES[request.param]
     root = tmp_path_factory.mktemp("stationary") / request.param
-    effect = None if name is None else EffectChoice(EFFECTS.get(name) or UNCATALOGUED[name], magnitude)
+    effect = None if name is None else EffectChoice(effect_spec(name), magnitude)
     truth = synth_excitation(root, seed=seed, settings=SETTINGS, effect=effect, model=model)
     return request.param, truth, diagnose_stationary(open_campaign(root), model=model, settings=FAST)
 

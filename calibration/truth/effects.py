@@ -99,6 +99,14 @@ UNCATALOGUED: dict[str, EffectSpec] = {s.name: s for s in (
 )}
 
 
+def effect_spec(name: str) -> EffectSpec:
+    """The spec of an effect of the catalogue or outside it (tests and benches hide both)."""
+    spec = EFFECTS.get(name) or UNCATALOGUED.get(name)
+    if spec is None:
+        raise KeyError(f"no effect {name!r} in the catalogue or outside it")
+    return spec
+
+
 def parse_effect(text: str | None, kind: str) -> EffectChoice | None:
     """Parse ``NAME[=MAGNITUDE]``; raise :class:`InputError` naming what is wrong."""
     if text is None:
