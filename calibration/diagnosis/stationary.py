@@ -29,7 +29,11 @@ wrong, the cause, the extended model and the held-out gain.
    floors, sides, ends) divided by its own factor (the panel and the divisor). Each is
    fitted on the training FRFs: a global scan (mount grid x mounting frequency x mass;
    panel x divisor) with the baseline held, then joint least-squares refinement with the
-   baseline's factors and dampings.
+   baseline's factors and dampings. A softened panel can leave the baseline in a basin far
+   from the truth (the rear floor softened by 3: the baseline's swarm fitted the identified
+   modes 15 % off, a swarm with the rear floor's rigidities free 3 %), so the softening is
+   also started from a particle swarm per panel on the identified modes with that panel's
+   rigidities searched on their own.
 5. **Decision** on the held-out part. Error of a model on one channel:
 
        E_o = mean over lines in the band of |log(H_model / H_meas)|^2 / (2 (sigma^2 + floor^2))
@@ -1003,33 +1007,109 @@ def _extension_start(ctx: _Context, base: Fitted, layout: Layout, red: Reduced, 
     return slots, z
 
 
+def _panel_model(ops: Operators, panel: str) -> tuple[BoxModel, tuple[str, ...]]:
+    """The box model with ``panel``'s share of each of its group's factors made a factor of
+    its own, named ``factor@panel`` (K stays linear in the factors, as the swarm needs);
+    returns it and the factors so copied. A factor whose whole energy is the panel's (the
+    roof's) is not copied: it is already the panel's own. (A rigidity no factor scales
+    stays unscaled: the copies then soften the panel's factored part only.)"""
+    model = ops.model
+    _, Kp = ops.panel_stiffness(panel)
+    own = set(_own_group_factors(ops, panel))
+    copies = tuple(n for n in model.names if n in Kp and n not in own)
+    units = dict(model.K_units)
+    for n in copies:
+        units[n] = (model.K_units[n] - Kp[n]).tocsr()
+        units[f"{n}@{panel}"] = Kp[n]
+    return replace(model, names=model.names + tuple(f"{n}@{panel}" for n in copies), K_units=units), copies
+
+
+@dataclass(frozen=True)
+class _PanelSwarm:
+    """The swarm's answer for one panel softened: the group factors (within the priors)
+    and the panel's own values of the factors that touch it, their ratio a divisor each."""
+
+    panel: str
+    modal_fit_pct: float  # seed eq. 3 on the full model: largest frequency error of the identified modes
+    p: np.ndarray  # (n_p,) factors, the panel's own ones (roof) included
+    divisors: dict  # factor -> group value / the panel's own value (copied factors only)
+    own: tuple[str, ...]  # factors whose whole energy is the panel's
+
+    def factors_at(self, ctx: _Context, divisor: float) -> np.ndarray:
+        """Factors that, with the panel divided by ``divisor``, give the panel its own values
+        found by the swarm where the priors allow (the roof's factors times the divisor,
+        clipped to their range)."""
+        p = self.p.copy()
+        for n in self.own:
+            i = ctx.names.index(n)
+            p[i] = np.clip(p[i] * divisor, ctx.low[i], ctx.high[i])
+        return p
+
+
+def _panel_swarm(ctx: _Context, panel: str) -> _PanelSwarm:
+    """The seed's particle swarm on the identified modes (as the baseline's,
+    :func:`calibrate_box`) with ``panel``'s rigidities searched on their own
+    (:func:`_panel_model`, down to the group's range divided by the largest divisor): a
+    start for the softening that does not depend on the basin the baseline found."""
+    s = ctx.settings
+    model, copies = _panel_model(ctx.ops, panel)
+    own = _own_group_factors(ctx.ops, panel)
+    prior = box_search(ctx.campaign.meta.priors, ctx.names)
+    soft = DIVISOR_RANGE[1]
+    search = tuple(replace(q, low=q.low / soft) if q.name in own else q for q in prior) + tuple(
+        replace(q, name=f"{q.name}@{panel}", low=q.low / soft) for q in prior if q.name in copies)
+    sensors = tuple(ctx.campaign.meta.sensor(n) for n in ctx.ident.sensors)
+    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search, settings=s.pso, seed=s.seed,
+                        refine=False, model=model)
+    found = cal.parameters
+    p = np.array([found[n] for n in ctx.names])
+    for n in ctx.names:  # the group factors back in the priors (the own ones are scaled by the divisor later)
+        if n not in own:
+            i = ctx.names.index(n)
+            p[i] = np.clip(p[i], ctx.low[i], ctx.high[i])
+    divisors = {n: float(found[n] / found[f"{n}@{panel}"]) for n in copies}
+    return _PanelSwarm(panel, cal.pso["best_full_pct"], p, divisors, own)
+
+
 def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
-    """Global start: every panel x divisor of :data:`DIVISOR_SCAN`, at the baseline's and at
-    the nominal factors (the baseline's may have bent to mimic the softening), scored by
-    the training error on one basis per panel spanning the divisors; the best start of
-    each panel whose own factors the baseline pressed to their lower bound and of the
-    ``settings.starts`` best-scoring panels refined with factors and divisor free, first
-    on smoothed spectra (continuation), then briefly on the exact residual; the best of
-    them fitted fully (dampings free too)."""
+    """Global start: every panel x divisor of :data:`DIVISOR_SCAN` at three factor sets: the
+    baseline's, the nominal ones (the baseline's may have bent to mimic the softening), and
+    those of a particle swarm on the identified modes with the panel's rigidities searched
+    on their own (:func:`_panel_swarm`; at the divisors it found too), scored by the training
+    error on one basis per panel spanning them; the best start of each panel whose own
+    factors the baseline pressed to their lower bound and of the ``settings.starts``
+    best-scoring panels refined with factors and divisor free, first on smoothed spectra
+    (continuation), then briefly on the exact residual; the best of them fitted fully
+    (dampings free too)."""
     s = ctx.settings
     p_b, z_b, _ = base.layout.split(base.x)
     p_nom = np.clip([q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)], ctx.low, ctx.high)
-    scan = []
+    scan, swarms = [], []
     for panel in (pn.name for pn in ctx.model.vehicle.panels):  # any panel of the carbody may be the soft one
-        # the scan's basis spans both factor sets it is evaluated at (the baseline's may be
+        sw = _panel_swarm(ctx, panel)
+        swarms.append(sw)
+        found = sorted({float(np.clip(d, *DIVISOR_RANGE)) for d in sw.divisors.values()})
+        d_sw = float(np.exp(np.mean(np.log(found)))) if found else 4.0
+        # the scan's basis spans every factor set it is evaluated at (the baseline's may be
         # far from nominal, e.g. a softened roof pushes the roof factors to their bound)
         red = Reduced.build(ctx.ops, Stiffness(p_b, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
                             extra=s.basis_extra + 60, below_hz=s.basis_hz,
                             extra_points=(Stiffness(p_b, panel, 1.5), Stiffness(p_b, panel, 12.0),
-                                          Stiffness(p_nom, panel, 4.0)))
+                                          Stiffness(p_nom, panel, 4.0), Stiffness(sw.factors_at(ctx, d_sw), panel, d_sw)))
         lay = Layout(len(p_b), base.family.slots.n, "softening")
         fam = Family.make(red, base.family.slots, lay, ctx.default_zeta)
-        for p0 in (p_b, p_nom):
-            for d in DIVISOR_SCAN:
+        for which, divisors in (("baseline", DIVISOR_SCAN), ("nominal", DIVISOR_SCAN),
+                                ("swarm", sorted(set(DIVISOR_SCAN) | set(found)))):
+            for d in divisors:
+                p0 = {"baseline": p_b, "nominal": p_nom}.get(which)
+                p0 = sw.factors_at(ctx, d) if p0 is None else p0
                 x = np.concatenate([np.log(p0), np.log(z_b), [np.log(d)]])
-                scan.append((_total_error(fam, x, ctx.meas, s.floor), panel, d, p0))
+                scan.append((_total_error(fam, x, ctx.meas, s.floor), panel, d, p0, which))
+    ctx.say("swarm per softened panel, modal fit: " + ", ".join(
+        f"{sw.panel} {sw.modal_fit_pct:.1f} %" + (" (/" + "/".join(f"{d:.2g}" for d in sw.divisors.values()) + ")"
+                                                 if sw.divisors else "") for sw in swarms))
     scan.sort(key=lambda r: r[0])
-    ctx.say("panel softening scan: " + ", ".join(f"{pn} /{d:g}: {e:.0f}" for e, pn, d, _ in scan[:4]))
+    ctx.say("panel softening scan: " + ", ".join(f"{pn} /{d:.3g} ({w}): {e:.0f}" for e, pn, d, _, w in scan[:4]))
     # evidence first: a panel whose own factors the baseline drove to their lower bound is
     # refined whatever its scan score (the baseline's other factors bent around it, so
     # the scan, which holds them, underrates it); then the best-scoring panels
@@ -1037,10 +1117,14 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     pressed = {pn.name for pn in ctx.model.vehicle.panels if lower & set(_own_group_factors(ctx.ops, pn.name))}
     if pressed:
         ctx.say(f"panel(s) whose own factors sit at their lower bound, refined first: {', '.join(sorted(pressed))}")
-    order = sorted(scan, key=lambda r: (r[1] not in pressed, r[0]))
+    # the panel the swarm fits the identified modes best with is refined from its own
+    # factors too: the scan's exact FRF error punishes the few-percent peak misalignment a
+    # swarm on frequencies leaves more than it rewards the right panel
+    best_swarm = min(swarms, key=lambda sw: sw.modal_fit_pct).panel
+    order = sorted(scan, key=lambda r: (r[1] not in pressed, not (r[1] == best_swarm and r[4] == "swarm"), r[0]))
     starts, seen = [], set()
-    for err, panel, d, p0 in order:  # the best divisor of each panel (of each factor set, if pressed)
-        key = (panel, p0 is p_nom) if panel in pressed else panel
+    for err, panel, d, p0, which in order:  # the best divisor of each panel (of each factor set, if pressed)
+        key = (panel, which == "nominal") if panel in pressed else panel
         if key in seen:
             continue
         seen.add(key)
@@ -1059,7 +1143,7 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
             x = _least_squares(fam, x, lo, hi, ctx.meas, s.refine_iterations // 2, s.floor, free, smooth=width)
             red = _basis(ctx, lay, x, panel)
         starts.append(("local_panel_softening", lay, slots, x, lo, hi, panel, red))
-        if len(starts) == s.starts + 2 * len(pressed):
+        if len(starts) == s.starts + 2 * len(pressed) + 1:
             break
     return _fit_best(ctx, starts)
 
