@@ -20,8 +20,13 @@ demo: $(STAMP)
 	$(VENV)/bin/railcal demo --out demo_output
 
 # pytest exits 5 when it collects no test; that is a failure of the suite, not a pass.
+# TEST_JOBS workers (pytest-xdist), each on one BLAS thread: the suite's linear algebra is on
+# matrices of a few hundred rows, where a second BLAS thread costs more than it gives (one
+# stationary diagnosis: 100 s on one thread, 136 s on two), so the cores go to workers instead.
+# Each test file stays on one worker except the tests marked `spread` (tests/conftest.py).
+TEST_JOBS ?= 2
 test: $(STAMP)
-	$(PY) -m pytest -q tests; rc=$$?; \
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist loadgroup tests; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "pytest collected no tests" >&2; exit 1; fi; exit $$rc
 
 # FMUs of the car and the box-type vehicle, FMI 2.0 and 3.0 (win64 too when mingw-w64 is installed:

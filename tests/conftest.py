@@ -29,6 +29,16 @@ def tiny_columns(n: int = 400) -> dict[str, np.ndarray]:
             "bogie1_gyro_pitch": 0.5 * np.sin(2 * np.pi * 7 * t)}
 
 
+def pytest_collection_modifyitems(config, items):
+    """Groups for pytest-xdist's ``--dist loadgroup`` (``make test``): every test file runs on
+    one worker, so its module and session fixtures are built once, except tests marked
+    ``spread`` (a diagnosed campaign of a minute or two each), which are a group each so
+    that the workers share them."""
+    for item in items:
+        group = item.nodeid if item.get_closest_marker("spread") else item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group(group))
+
+
 @pytest.fixture
 def tiny_campaign(tmp_path):
     """A valid two-sensor in-service campaign (CSV) with one run, 4 s at 100 Hz."""
