@@ -1077,7 +1077,8 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     those of a particle swarm on the identified modes with the panel's rigidities searched
     on their own (:func:`_panel_swarm`; at the divisors it found too), scored by the training
     error on one basis per panel spanning them; the best start of each panel whose own
-    factors the baseline pressed to their lower bound and of the ``settings.starts``
+    factors the baseline pressed to their lower bound, of the panel whose swarm fits the
+    identified modes best (from the swarm's factors) and of the ``settings.starts``
     best-scoring panels refined with factors and divisor free, first on smoothed spectra
     (continuation), then briefly on the exact residual; the best of them fitted fully
     (dampings free too)."""
