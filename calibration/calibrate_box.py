@@ -97,7 +97,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
         refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
                       "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
         p = r.parameters
-    final = fit.full_check(p)
+    final = check if refinement is None else fit.full_check(p)  # unrefined: the swarm's best, already checked
     fit.rebuild(p)  # exact eigenpairs at p for the sensitivities
     sigma = np.broadcast_to(np.asarray(sigma_f, float), (len(targets),))
     ident = identifiability(fit, p, tuple(t.label for t in targets), sigma_f=sigma, low=low, high=high).to_json()

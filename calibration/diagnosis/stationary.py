@@ -1063,10 +1063,8 @@ def _panel_swarm(ctx: _Context, panel: str) -> _PanelSwarm:
                         refine=False, model=model)
     found = cal.parameters
     p = np.array([found[n] for n in ctx.names])
-    for n in ctx.names:  # the group factors back in the priors (the own ones are scaled by the divisor later)
-        if n not in own:
-            i = ctx.names.index(n)
-            p[i] = np.clip(p[i], ctx.low[i], ctx.high[i])
+    group = np.array([n not in own for n in ctx.names])  # back in the priors (the own ones: by the divisor, later)
+    p[group] = np.clip(p[group], ctx.low[group], ctx.high[group])
     divisors = {n: float(found[n] / found[f"{n}@{panel}"]) for n in copies}
     return _PanelSwarm(panel, cal.pso["best_full_pct"], p, divisors, own)
 
@@ -1099,11 +1097,12 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
                                           Stiffness(p_nom, panel, 4.0), Stiffness(sw.factors_at(ctx, d_sw), panel, d_sw)))
         lay = Layout(len(p_b), base.family.slots.n, "softening")
         fam = Family.make(red, base.family.slots, lay, ctx.default_zeta)
-        for which, divisors in (("baseline", DIVISOR_SCAN), ("nominal", DIVISOR_SCAN),
-                                ("swarm", sorted(set(DIVISOR_SCAN) | set(found)))):
+        for which, factors, divisors in (("baseline", lambda d: p_b, DIVISOR_SCAN),
+                                         ("nominal", lambda d: p_nom, DIVISOR_SCAN),
+                                         ("swarm", functools.partial(sw.factors_at, ctx),
+                                          sorted(set(DIVISOR_SCAN) | set(found)))):
             for d in divisors:
-                p0 = {"baseline": p_b, "nominal": p_nom}.get(which)
-                p0 = sw.factors_at(ctx, d) if p0 is None else p0
+                p0 = factors(d)
                 x = np.concatenate([np.log(p0), np.log(z_b), [np.log(d)]])
                 scan.append((_total_error(fam, x, ctx.meas, s.floor), panel, d, p0, which))
     ctx.say("swarm per softened panel, modal fit: " + ", ".join(
