@@ -68,14 +68,14 @@ def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
 
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
-                  sigma_f=0.002, model=None, progress=None) -> BoxCalibration:
+                  sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability."""
     model = assemble(shinkansen_vehicle()) if model is None else model
     names = tuple(p.name for p in search)
     if names != model.names:
         raise InputError(f"the search must name the model's parameters {model.names}, got {names}", key="priors")
-    fit = BoxFit(model, sensor_operator(model, sensors), targets)
+    fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share)
     low, high = bounds(search)
     centre = np.array([p.mean for p in search])
     t0 = time.perf_counter()

@@ -12,7 +12,8 @@ from calibration.calibrate_box import box_search, calibrate_box, targets_from_id
 from calibration.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.excitation import identify_excitation
-from calibration.models.box.fit import mac_matrix, select_targets
+from calibration.models.box.fit import BoxFit, ModeTarget, carbody_mass, mac_matrix, select_targets, sensor_operator
+from calibration.models.box.reduced import full_modes
 from calibration.models.box.mode_types import MODE_TYPES, template
 from calibration.optimisers.pso import PSOSettings
 from calibration.truth.excitation import SENSOR_GRID, ExcitationSettings, synth_excitation, truth_modes
@@ -94,6 +95,27 @@ def test_mode_type_templates_are_distinct_floor_patterns():
     T = np.column_stack([template(t, SENSOR_GRID, 24.5, 3.38) for t in MODE_TYPES])
     off = mac_matrix(T, T) - np.eye(T.shape[1])
     assert np.all(off < 0.5)
+
+
+def test_a_target_pairs_only_with_carbody_modes_when_asked(model):
+    """A bogie mode moves the floor faintly through the suspension; its floor pattern can
+    match a target's shape perfectly. With ``min_carbody_share`` the pairing skips modes
+    whose kinetic energy is mostly outside the carbody."""
+    S = sensor_operator(model, SENSOR_GRID)
+    f, X = full_modes(model, np.ones(len(model.names)), 30)
+    share = np.einsum("dm,dm->m", X, carbody_mass(model) @ X)
+    assert np.all((share > -1e-12) & (share < 1 + 1e-9))  # M-normalised: carbody + bogies = 1
+    bogie = int(np.argmin(share))
+    assert share[bogie] < 0.1
+    target = (ModeTarget("bogie_pattern", float(f[bogie]), S @ X[:, bogie]),)
+    p = np.ones(len(model.names))
+    blind, fit = BoxFit(model, S, target), BoxFit(model, S, target, min_carbody_share=0.5)
+    blind.rebuild(p)
+    fit.rebuild(p)
+    assert blind.full_check(p)["index"][0] == bogie and blind.full_check(p)["mac"][0] == pytest.approx(1.0)
+    seen = fit.full_check(p)["index"][0]
+    assert share[seen] >= 0.5
+    assert fit.pair(p[None, :]).index[0, 0] == seen  # the reduced pairing skips it too
 
 
 def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from .assembly import BoxModel
 from .reduced import ReducedFamily, full_modes
@@ -50,6 +51,17 @@ def sensor_operator(model: BoxModel, sensors) -> np.ndarray:
             raise ValueError(f"sensor {s.name}: no {s.body!r} panel of the model contains position {s.position}")
         rows.append(model.displacement(host.name, s.position)["xyz".index(s.direction)])
     return np.array(rows)
+
+
+def carbody_mass(model: BoxModel):
+    """The mass matrix with every rigid body's (bogie's) rows and columns zeroed: x^T Mc x
+    is the carbody's share of an M-normalised mode's kinetic energy (the mass matrix has
+    no coupling between the panels and the rigid bodies)."""
+    keep = np.ones(model.n_dof)
+    for rb in model.vehicle.bodies:
+        keep[model.dof_slices[rb.name]] = 0.0
+    D = sp.diags(keep)
+    return (D @ model.M @ D).tocsr()
 
 
 def mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -92,9 +104,13 @@ class Pairing:
 
 class BoxFit:
     def __init__(self, model: BoxModel, sensors: np.ndarray, targets: tuple[ModeTarget, ...], *,
-                 n_modes: int = 30, basis_size: int = 60, derivatives: int = 20):
+                 n_modes: int = 30, basis_size: int = 60, derivatives: int = 20, min_carbody_share: float = 0.0):
         """``sensors`` (n_sensors, n_dof): the operator from DOF to what each sensor reads
-        (e.g. floor vertical displacement)."""
+        (e.g. floor vertical displacement). ``min_carbody_share``: a model mode is paired
+        only if at least this share of its kinetic energy is in the carbody (panels and the
+        masses on them); a bogie mode seen faintly through the suspension has the floor
+        pattern of its carbody reaction, which MAC, blind to amplitude, can mistake for an
+        elastic mode."""
         self.model = model
         self.sensors = np.asarray(sensors, float)
         self.targets = tuple(targets)
@@ -105,6 +121,8 @@ class BoxFit:
         self.reduced: ReducedFamily | None = None
         self.centre: np.ndarray | None = None
         self.rebuilds = 0
+        self.min_carbody_share = float(min_carbody_share)
+        self._M_carbody = carbody_mass(model)
 
     # -- reduced basis ----------------------------------------------------------------
     def rebuild(self, p) -> None:
@@ -113,6 +131,8 @@ class BoxFit:
                                            modes_per_sample=self.n_modes, size=self.basis_size,
                                            derivatives=self.derivatives)
         self._S = self.sensors @ self.reduced.V
+        V = self.reduced.V
+        self._Mc = V.T @ (self._M_carbody @ V)
         self.centre = p.copy()
         self.rebuilds += 1
 
@@ -134,6 +154,9 @@ class BoxFit:
         f, Y = self.reduced.modes(np.atleast_2d(P), self.n_modes)
         phi = np.einsum("sr,nrm->nsm", self._S, Y)  # model shapes at the sensors
         mac = mac_matrix(self.shapes, phi)  # (N, n_targets, n_modes)
+        if self.min_carbody_share > 0:
+            share = np.einsum("nrm,rs,nsm->nm", Y, self._Mc, Y)
+            mac = np.where((share >= self.min_carbody_share)[:, None, :], mac, 0.0)
         idx = np.argmax(mac, axis=2)
         rows = np.arange(len(f))[:, None]
         return Pairing(f[rows, idx], np.take_along_axis(mac, idx[..., None], 2)[..., 0], idx)
@@ -150,6 +173,9 @@ class BoxFit:
         p = np.asarray(p, float)
         f, X = full_modes(self.model, p, self.n_modes)
         mac = mac_matrix(self.shapes, self.sensors @ X)
+        if self.min_carbody_share > 0:
+            share = np.einsum("dm,dm->m", X, self._M_carbody @ X)
+            mac = np.where((share >= self.min_carbody_share)[None, :], mac, 0.0)
         idx = np.argmax(mac, axis=1)
         reduced = self.pair(p[None, :])
         return {"frequency_hz": f[idx], "mac": mac[np.arange(len(idx)), idx], "index": idx,
