@@ -300,14 +300,25 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
         at = [n for n, v, (lo, hi) in (("track_resonance_hz", tf.f_t, s.track.f_t_range),
                                        ("damping_ratio", tf.zeta, s.track.zeta_range))
               if min(abs(np.log(v / lo)), abs(np.log(hi / v))) < 0.01 * np.log(hi / lo)]
-    red = 1.0 - after / np.maximum(before, 1e-300)
-    best = int(np.argmax(red))
+    red = reductions(before, after)
+    seen = ~np.isnan(red)
+    best = int(np.nanargmax(red)) if seen.any() else 0
+    gain = float(red[best]) if seen.any() else 0.0
     return {"name": ext.name, "kind": ext.kind, "description": ext.description, "parameters": params,
             "parameters_at_bounds": at, "model": model, "n_params": ext.n_params,
-            "heldout_error": {n: {"before": float(b), "after": float(a), "reduction": float(r)}
-                              for n, b, a, r in zip(names, before, after, red)},
-            "best_channel": names[best], "gain": float(red[best]), "worst_change": float(red.min()),
-            "penalised_gain": float(red[best] - s.penalty * ext.n_params)}
+            "heldout_error": {n: {"before": float(b), "after": float(a), "reduction": float(r) if ok else None}
+                              for n, b, a, r, ok in zip(names, before, after, red, seen)},
+            "best_channel": names[best], "gain": gain, "worst_change": float(np.nanmin(red)) if seen.any() else 0.0,
+            "penalised_gain": gain - s.penalty * ext.n_params}
+
+
+def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Relative held-out error reduction per channel, 1 - after / before; NaN where the
+    channel has no held-out error to reduce (no signal band of it survived the masks: 0 / 0
+    would read as a 100 % gain on a channel that says nothing)."""
+    before, after = np.asarray(before, float), np.asarray(after, float)
+    ok = before > 0
+    return np.where(ok, 1.0 - after / np.where(ok, before, 1.0), np.nan)
 
 
 def _extras_json(ex: CarExtras) -> dict:
