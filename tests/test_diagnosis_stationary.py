@@ -150,6 +150,18 @@ def test_registry_names_the_stationary_effects_of_the_catalogue():
 
 
 # ------------------------------------------------------------------------------ bad input
+def test_a_softening_that_ends_at_the_searchs_lowest_divisor_is_not_a_softened_panel():
+    """A divisor at the search's lower limit (barely softer) means the fit gained by adjusting
+    the baseline's stiffness, not by a local softening: such a fit is never named (on the
+    full-order bench a bracketed sensor and an underfloor mass were both once named
+    `local_panel_softening` at divisor 1.2)."""
+    soft, equipment = EXTENSIONS["local_panel_softening"], EXTENSIONS["underfloor_equipment"]
+    low = soft.null_end[1]
+    assert soft.at_null_end({"panel": "floor_rear", "rigidity_divisor": low * 1.000001})
+    assert not soft.at_null_end({"panel": "floor_rear", "rigidity_divisor": 3.0})
+    assert not equipment.at_null_end({"equipment_mass_kg": 500.0, "mounting_frequency_hz": 15.0})
+
+
 def test_an_unpaired_mode_alarms_only_where_the_heldout_frf_around_it_is_misfitted():
     """An identified mode the model does not pair is a misfit only if the held-out FRF
     near it is not explained; where it is (a weak or merged mode), it is reported as an

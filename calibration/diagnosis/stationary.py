@@ -985,6 +985,15 @@ class StationaryExtension:
     description: str
     parameters: tuple[str, ...]  # what is fitted (counted for the complexity penalty)
     fit: Callable  # (ctx, baseline) -> list[Fitted], best first
+    #: (parameter, bound) where the effect vanishes at the edge of its search: a fit that ends
+    #: there gains by adjusting the baseline, not by the effect, and is not named as the cause
+    null_end: tuple[str, float] | None = None
+
+    def at_null_end(self, parameters: dict, tol: float = 0.01) -> bool:
+        if self.null_end is None:
+            return False
+        name, bound = self.null_end
+        return abs(np.log(float(parameters[name]) / bound)) <= tol
 
     @property
     def n_params(self) -> int:
@@ -1252,7 +1261,7 @@ EXTENSIONS: dict[str, StationaryExtension] = {e.name: e for e in (
     StationaryExtension(
         "local_panel_softening",
         "one carbody panel (roof, floor, side or end) with its rigidities divided by its own factor",
-        ("panel", "rigidity_divisor"), _fit_softening),
+        ("panel", "rigidity_divisor"), _fit_softening, null_end=("rigidity_divisor", DIVISOR_RANGE[0])),
 )}
 
 
@@ -1400,9 +1409,10 @@ def _judge(ctx: _Context, ext: StationaryExtension, fit: Fitted, before: np.ndar
     loss = (after - before) / np.maximum(before, 1.0)  # worsening in units of the channel's error (>= noise)
     sensors = ctx.ident.sensors
     best = int(np.argmax(per))
+    params = fit.extension_parameters(ctx.carbody_mass)
     return {
         "name": ext.name, "description": ext.description,
-        "parameters": fit.extension_parameters(ctx.carbody_mass), "n_params": ext.n_params,
+        "parameters": params, "n_params": ext.n_params, "at_null_end": ext.at_null_end(params),
         "factors": fit.factors(ctx.names),
         "training_error_mean": fit.train_error / len(sensors),
         "heldout_error": {"all_channels": {"before": total_b, "after": total_a, "reduction": red},
@@ -1431,6 +1441,9 @@ def _summary(cause: str, best: dict | None, alarms: list[str], notes: list[str],
     out += alarms + notes
     out.append("hypotheses by held-out gain: " + ", ".join(
         f"{h['name']} {h['gain']:.0%}" for h in sorted(hyps, key=lambda h: -h["penalised_gain"])))
+    out += [f"{h['name']} not named: its fit ends where the effect vanishes, at the search's limit ("
+            + ", ".join(f"{k} = {v:.3g}" if isinstance(v, float) else f"{k} = {v}" for k, v in h["parameters"].items())
+            + "); its gain comes from re-adjusting the baseline" for h in hyps if h["at_null_end"] and h["gain"] > 0]
     if ev["parameters_at_bounds"]:
         out.append("baseline factors at their bounds: " + ", ".join(ev["parameters_at_bounds"]))
     return out
@@ -1539,7 +1552,8 @@ def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | 
             ev["without_channel"] = _without_channel(campaign, s, ctx.model, one[0], say)
         except (CampaignError, InputError) as exc:  # e.g. no mode identified without it: the check is skipped
             say(f"re-calibration without {one[0]} not possible: {exc}")
-    ok = [h for h in hyps if h["penalised_gain"] >= s.min_gain and h["worst_loss"] <= s.max_loss]
+    ok = [h for h in hyps if h["penalised_gain"] >= s.min_gain and h["worst_loss"] <= s.max_loss
+          and not h["at_null_end"]]
     alarms, notes = _alarms(ev, s)
     best = max(ok, key=lambda h: h["penalised_gain"]) if ok else None
     cause = best["name"] if best else ("unexplained" if alarms else "none")
