@@ -43,7 +43,9 @@ wrong, the cause, the extended model and the held-out gain.
    floor of 1 % (``floor``): E is about 1 when a model explains the channel within the
    noise. The gain of a hypothesis is the relative reduction of the error summed over
    all channels; the cause is the hypothesis with the largest gain less ``penalty`` per
-   parameter if that is at least ``min_gain``. Otherwise ``none`` when the baseline's
+   parameter if that is at least ``min_gain`` and its fit does not end where its effect
+   vanishes (``StationaryExtension.null_end``: a softening at the search's lowest divisor
+   only re-adjusts the baseline). Otherwise ``none`` when the baseline's
    held-out error is within ``noise_alarm`` of the noise and no identified mode is left
    unpaired with the held-out FRF around it (``mode_band``) misfitted by more than
    ``noise_alarm`` (an unpaired mode the FRF explains is an identification artefact: a
