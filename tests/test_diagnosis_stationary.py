@@ -160,6 +160,7 @@ def test_a_softening_that_ends_at_the_searchs_lowest_divisor_is_not_a_softened_p
     assert soft.at_null_end({"panel": "floor_rear", "rigidity_divisor": low * 1.000001})
     assert not soft.at_null_end({"panel": "floor_rear", "rigidity_divisor": 3.0})
     assert not equipment.at_null_end({"equipment_mass_kg": 500.0, "mounting_frequency_hz": 15.0})
+    assert json.dumps(soft.at_null_end({"rigidity_divisor": 5.0})) == "false"  # goes into the diagnosis JSON
 
 
 def test_an_unpaired_mode_alarms_only_where_the_heldout_frf_around_it_is_misfitted():

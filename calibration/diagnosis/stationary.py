@@ -995,7 +995,7 @@ class StationaryExtension:
         if self.null_end is None:
             return False
         name, bound = self.null_end
-        return abs(np.log(float(parameters[name]) / bound)) <= tol
+        return bool(abs(np.log(float(parameters[name]) / bound)) <= tol)
 
     @property
     def n_params(self) -> int:
