@@ -37,7 +37,6 @@ P = INTERCITY_TRAILER
 
 
 # ------------------------------------------------------------------ model extensions
-
 def test_a_channel_with_no_held_out_signal_claims_no_gain():
     """Held-out error per channel is summed over the channel's signal bands; a channel with
     none (0 before, 0 after) has nothing to reduce, so it can be no hypothesis's best
@@ -46,6 +45,7 @@ def test_a_channel_with_no_held_out_signal_claims_no_gain():
     red = reductions(np.array([0.5, 0.0, 2.0]), np.array([0.25, 0.0, 3.0]))
     assert red[0] == pytest.approx(0.5) and np.isnan(red[1]) and red[2] == pytest.approx(-0.5)
     assert int(np.nanargmax(red)) == 0
+
 
 def test_beam_bending_shape_is_a_free_free_mode_with_a_quarter_of_the_mass():
     L = 23.0

@@ -149,7 +149,6 @@ def test_registry_names_the_stationary_effects_of_the_catalogue():
     assert all(e.n_params >= 1 and e.description for e in EXTENSIONS.values())
 
 
-# ------------------------------------------------------------------------------ bad input
 def test_a_softening_that_ends_at_the_searchs_lowest_divisor_is_not_a_softened_panel():
     """A divisor at the search's lower limit (barely softer) means the fit gained by adjusting
     the baseline's stiffness, not by a local softening: such a fit is never named (on the
@@ -163,6 +162,7 @@ def test_a_softening_that_ends_at_the_searchs_lowest_divisor_is_not_a_softened_p
     assert json.dumps(soft.at_null_end({"rigidity_divisor": 5.0})) == "false"  # goes into the diagnosis JSON
 
 
+# ------------------------------------------------------------------------------ bad input
 def test_an_unpaired_mode_alarms_only_where_the_heldout_frf_around_it_is_misfitted():
     """An identified mode the model does not pair is a misfit only if the held-out FRF
     near it is not explained; where it is (a weak or merged mode), it is reported as an

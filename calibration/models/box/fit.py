@@ -122,7 +122,7 @@ class BoxFit:
         self.centre: np.ndarray | None = None
         self.rebuilds = 0
         self.min_carbody_share = float(min_carbody_share)
-        self._M_carbody = carbody_mass(model)
+        self._M_carbody = carbody_mass(model) if self.min_carbody_share > 0 else None
 
     # -- reduced basis ----------------------------------------------------------------
     def rebuild(self, p) -> None:
@@ -131,8 +131,8 @@ class BoxFit:
                                            modes_per_sample=self.n_modes, size=self.basis_size,
                                            derivatives=self.derivatives)
         self._S = self.sensors @ self.reduced.V
-        V = self.reduced.V
-        self._Mc = V.T @ (self._M_carbody @ V)
+        if self._M_carbody is not None:
+            self._Mc = self.reduced.V.T @ (self._M_carbody @ self.reduced.V)
         self.centre = p.copy()
         self.rebuilds += 1
 
@@ -154,9 +154,8 @@ class BoxFit:
         f, Y = self.reduced.modes(np.atleast_2d(P), self.n_modes)
         phi = np.einsum("sr,nrm->nsm", self._S, Y)  # model shapes at the sensors
         mac = mac_matrix(self.shapes, phi)  # (N, n_targets, n_modes)
-        if self.min_carbody_share > 0:
-            share = np.einsum("nrm,rs,nsm->nm", Y, self._Mc, Y)
-            mac = np.where((share >= self.min_carbody_share)[:, None, :], mac, 0.0)
+        if self._M_carbody is not None:
+            mac = self._carbody_only(mac, np.einsum("nrm,rs,nsm->nm", Y, self._Mc, Y)[:, None, :])
         idx = np.argmax(mac, axis=2)
         rows = np.arange(len(f))[:, None]
         return Pairing(f[rows, idx], np.take_along_axis(mac, idx[..., None], 2)[..., 0], idx)
@@ -168,14 +167,18 @@ class BoxFit:
 
     __call__ = evaluation
 
+    def _carbody_only(self, mac: np.ndarray, share: np.ndarray) -> np.ndarray:
+        """MAC zeroed for the model modes whose carbody share of kinetic energy (``share``,
+        broadcast against ``mac``) is below ``min_carbody_share``."""
+        return np.where(share >= self.min_carbody_share, mac, 0.0)
+
     def full_check(self, p) -> dict:
         """The full model at p: paired frequencies and MACs, and the reduced basis's error."""
         p = np.asarray(p, float)
         f, X = full_modes(self.model, p, self.n_modes)
         mac = mac_matrix(self.shapes, self.sensors @ X)
-        if self.min_carbody_share > 0:
-            share = np.einsum("dm,dm->m", X, self._M_carbody @ X)
-            mac = np.where((share >= self.min_carbody_share)[None, :], mac, 0.0)
+        if self._M_carbody is not None:
+            mac = self._carbody_only(mac, np.einsum("dm,dm->m", X, self._M_carbody @ X)[None, :])
         idx = np.argmax(mac, axis=1)
         reduced = self.pair(p[None, :])
         return {"frequency_hz": f[idx], "mac": mac[np.arange(len(idx)), idx], "index": idx,
