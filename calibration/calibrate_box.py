@@ -109,8 +109,11 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                           {p.name: [p.low, p.high] for p in search})
 
 
-def targets_from_identification(ident: ShakerIdentification) -> tuple[ModeTarget, ...]:
-    return tuple(ModeTarget(m.label, m.frequency_hz, m.shape) for m in ident.modes)
+def targets_from_identification(ident: ShakerIdentification, *, band: bool = False) -> tuple[ModeTarget, ...]:
+    """The identified modes as targets; with ``band`` each carries its half-power band
+    (its damping ratio), so that a mode identified at a close pair of model modes is
+    compared with the pair's span (:func:`calibration.models.box.fit.band_pairing`)."""
+    return tuple(ModeTarget(m.label, m.frequency_hz, m.shape, m.damping_ratio if band else 0.0) for m in ident.modes)
 
 
 def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
@@ -127,5 +130,5 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
     search = box_search(campaign.meta.priors)
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
-    return calibrate_box(targets_from_identification(ident), sensors, search, settings=settings, seed=seed,
+    return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
                          refine=refine, progress=progress), ident

@@ -2,7 +2,14 @@
 
 Each measured mode (frequency and shape at the sensors) is paired with the model mode of
 largest MAC (seed eq. 4) among the model's lowest ``n_modes``; the evaluation function is
-the largest relative frequency error of the pairs in per cent (seed eq. 3). A swarm is
+the largest relative frequency error of the pairs in per cent (seed eq. 3).
+
+A measured mode may carry its half-power band (``ModeTarget.band``, its damping ratio).
+Where two or more model modes lie inside that band a single-exciter test cannot separate
+them (modal overlap above 1): the identified shape is a mixture of theirs. Such a target
+is compared with the span of the model modes in its band (the MAC of the shape with its
+projection on that span) and takes the frequency of the member contributing most to the
+projection, whenever that beats the best single mode. Without a band, the seed's pairing. A swarm is
 evaluated in one batched reduced eigen-solve (:mod:`.reduced`), on a basis that
 :meth:`BoxFit.adapt` rebuilds around the swarm's best as the search narrows; the answer
 is always re-solved on the full model (:meth:`BoxFit.full_check`), so the reduced basis's
@@ -28,6 +35,7 @@ class ModeTarget:
     label: str
     frequency_hz: float
     shape: np.ndarray  # (n_sensors,) real or complex, at the sensors' measured direction
+    band: float = 0.0  # half-power band half-width relative to the frequency (the damping ratio); 0: none
 
 
 def sensor_operator(model: BoxModel, sensors) -> np.ndarray:
@@ -95,6 +103,39 @@ def select_targets(frequency_hz, shapes, *, strength=None, band=(8.0, 20.0), n: 
     return tuple(ModeTarget(lbl, float(f[k]), S[:, k] / np.abs(S[:, k]).max()) for lbl, k in zip(labels, chosen))
 
 
+def band_pairing(frequency_hz, phi, shapes, f_target, band, mac, eligible=None):
+    """Pair targets with model modes: the single mode of largest ``mac``, or, for a target
+    with ``band`` > 0 whose half-power band holds two or more (eligible) model modes, the
+    span of those modes when the shape's MAC with its projection on the span is larger.
+
+    Batched over N parameter sets: ``frequency_hz`` (N, m), model shapes at the sensors
+    ``phi`` (N, s, m), target ``shapes`` (s, T), ``f_target`` and ``band`` (T,), ``mac``
+    (N, T, m) of single modes (0 where not eligible), ``eligible`` (N, m) or None (all).
+    Returns (index (N, T) of the partner or of the span's dominant member, its MAC (N, T))."""
+    f = np.asarray(frequency_hz, float)
+    idx = np.argmax(mac, axis=2)
+    best = np.take_along_axis(mac, idx[..., None], 2)[..., 0]
+    band = np.asarray(band, float)
+    if not np.any(band > 0):
+        return idx, best
+    f_t = np.asarray(f_target, float)
+    inside = np.abs(f[:, None, :] - f_t[None, :, None]) <= (band * f_t)[None, :, None]
+    inside &= (band > 0)[None, :, None]
+    if eligible is not None:
+        inside &= np.asarray(eligible, bool)[:, None, :]
+    for n, t in zip(*np.nonzero(inside.sum(axis=2) >= 2)):  # few: only near a close pair
+        ks = np.flatnonzero(inside[n, t])
+        A = phi[n][:, ks]
+        norms = np.linalg.norm(A, axis=0)
+        c, *_ = np.linalg.lstsq(A / norms, shapes[:, t], rcond=1e-10)  # on unit columns
+        proj = (A / norms) @ c
+        v = shapes[:, t]
+        span_mac = float(np.abs(np.vdot(proj, v)) ** 2 / (np.real(np.vdot(proj, proj) * np.vdot(v, v)) + 1e-300))
+        if span_mac > best[n, t]:
+            idx[n, t], best[n, t] = ks[int(np.argmax(np.abs(c)))], span_mac
+    return idx, best
+
+
 @dataclass(frozen=True)
 class Pairing:
     frequency_hz: np.ndarray  # (N, n_targets) model frequency of each target's partner
@@ -116,6 +157,7 @@ class BoxFit:
         self.targets = tuple(targets)
         self.shapes = np.column_stack([np.asarray(t.shape) for t in self.targets])
         self.f_target = np.array([t.frequency_hz for t in self.targets])
+        self.band = np.array([t.band for t in self.targets], float)
         self.n_modes, self.basis_size, self.derivatives = n_modes, basis_size, derivatives
         self.names = model.names
         self.reduced: ReducedFamily | None = None
@@ -153,12 +195,20 @@ class BoxFit:
     def pair(self, P) -> Pairing:
         f, Y = self.reduced.modes(np.atleast_2d(P), self.n_modes)
         phi = np.einsum("sr,nrm->nsm", self._S, Y)  # model shapes at the sensors
-        mac = mac_matrix(self.shapes, phi)  # (N, n_targets, n_modes)
-        if self._M_carbody is not None:
-            mac = self._carbody_only(mac, np.einsum("nrm,rs,nsm->nm", Y, self._Mc, Y)[:, None, :])
-        idx = np.argmax(mac, axis=2)
+        share = None if self._M_carbody is None else np.einsum("nrm,rs,nsm->nm", Y, self._Mc, Y)
+        idx, best = self._partners(f, phi, share)
         rows = np.arange(len(f))[:, None]
-        return Pairing(f[rows, idx], np.take_along_axis(mac, idx[..., None], 2)[..., 0], idx)
+        return Pairing(f[rows, idx], best, idx)
+
+    def _partners(self, f, phi, share):
+        """Batched partners of the targets (:func:`band_pairing`) among model modes of
+        frequencies ``f`` (N, m) and sensor shapes ``phi`` (N, s, m); ``share`` (N, m): each
+        mode's carbody share of kinetic energy, None when not filtering on it."""
+        mac = mac_matrix(self.shapes, phi)  # (N, n_targets, n_modes)
+        eligible = None if share is None else share >= self.min_carbody_share
+        if eligible is not None:
+            mac = np.where(eligible[:, None, :], mac, 0.0)
+        return band_pairing(f, phi, self.shapes, self.f_target, self.band, mac, eligible)
 
     def evaluation(self, P) -> np.ndarray:
         """RTRI eq. 3 [%] for each parameter row."""
@@ -167,21 +217,15 @@ class BoxFit:
 
     __call__ = evaluation
 
-    def _carbody_only(self, mac: np.ndarray, share: np.ndarray) -> np.ndarray:
-        """MAC zeroed for the model modes whose carbody share of kinetic energy (``share``,
-        broadcast against ``mac``) is below ``min_carbody_share``."""
-        return np.where(share >= self.min_carbody_share, mac, 0.0)
-
     def full_check(self, p) -> dict:
         """The full model at p: paired frequencies and MACs, and the reduced basis's error."""
         p = np.asarray(p, float)
         f, X = full_modes(self.model, p, self.n_modes)
-        mac = mac_matrix(self.shapes, self.sensors @ X)
-        if self._M_carbody is not None:
-            mac = self._carbody_only(mac, np.einsum("dm,dm->m", X, self._M_carbody @ X)[None, :])
-        idx = np.argmax(mac, axis=1)
+        share = None if self._M_carbody is None else np.einsum("dm,dm->m", X, self._M_carbody @ X)[None]
+        idx, best = self._partners(f[None], (self.sensors @ X)[None], share)
+        idx, best = idx[0], best[0]
         reduced = self.pair(p[None, :])
-        return {"frequency_hz": f[idx], "mac": mac[np.arange(len(idx)), idx], "index": idx,
+        return {"frequency_hz": f[idx], "mac": best, "index": idx,
                 "error_pct": 100 * (f[idx] / self.f_target - 1),
                 "max_error_pct": float(100 * np.max(np.abs(f[idx] / self.f_target - 1))),
                 "reduced_frequency_hz": reduced.frequency_hz[0],
