@@ -9,8 +9,9 @@ Where two or more model modes lie inside that band a single-exciter test cannot 
 them (modal overlap above 1): the identified shape is a mixture of theirs. Such a target
 is compared with the span of the model modes in its band (the MAC of the shape with its
 projection on that span) and takes the frequency of the member contributing most to the
-projection, whenever that beats the best single mode. Without a band, the seed's pairing. A swarm is
-evaluated in one batched reduced eigen-solve (:mod:`.reduced`), on a basis that
+projection, whenever that beats the best single mode. Without a band, the seed's pairing.
+
+A swarm is evaluated in one batched reduced eigen-solve (:mod:`.reduced`), on a basis that
 :meth:`BoxFit.adapt` rebuilds around the swarm's best as the search narrows; the answer
 is always re-solved on the full model (:meth:`BoxFit.full_check`), so the reduced basis's
 error is measured, not assumed.
