@@ -99,7 +99,7 @@ def test_a_mode_identified_at_a_close_pair_pairs_with_the_span_of_the_pair():
     idx, best = band_pairing(f[None], phi[None], shapes, f_target, [0.013, 0.02], mac)
     assert best[0, 0] == pytest.approx(1.0) and idx[0, 0] == 1  # the member contributing most
     assert idx[0, 1] == 3 and best[0, 1] == pytest.approx(1.0)
-    narrow = band_pairing(f[None], phi[None], shapes, f_target, [0.0005, 0.02], mac)
+    narrow = band_pairing(f[None], phi[None], shapes, f_target, [0.001, 0.02], mac)  # holds 13.25 only
     assert narrow[1][0, 0] == pytest.approx(0.57)  # the band holds one mode only: no span
     excluded = band_pairing(f[None], phi[None], shapes, f_target, [0.013, 0.02], mac,
                             eligible=np.array([[True, True, False, True]]))
