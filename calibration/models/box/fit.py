@@ -126,11 +126,10 @@ def band_pairing(frequency_hz, phi, shapes, f_target, band, mac, eligible=None):
         inside &= np.asarray(eligible, bool)[:, None, :]
     for n, t in zip(*np.nonzero(inside.sum(axis=2) >= 2)):  # few: only near a close pair
         ks = np.flatnonzero(inside[n, t])
-        A = phi[n][:, ks]
-        norms = np.linalg.norm(A, axis=0)
-        c, *_ = np.linalg.lstsq(A / norms, shapes[:, t], rcond=1e-10)  # on unit columns
-        proj = (A / norms) @ c
+        U = phi[n][:, ks] / np.linalg.norm(phi[n][:, ks], axis=0)  # unit columns: c compares contributions
         v = shapes[:, t]
+        c, *_ = np.linalg.lstsq(U, v, rcond=1e-10)
+        proj = U @ c
         span_mac = float(np.abs(np.vdot(proj, v)) ** 2 / (np.real(np.vdot(proj, proj) * np.vdot(v, v)) + 1e-300))
         if span_mac > best[n, t]:
             idx[n, t], best[n, t] = ks[int(np.argmax(np.abs(c)))], span_mac
@@ -206,8 +205,9 @@ class BoxFit:
         frequencies ``f`` (N, m) and sensor shapes ``phi`` (N, s, m); ``share`` (N, m): each
         mode's carbody share of kinetic energy, None when not filtering on it."""
         mac = mac_matrix(self.shapes, phi)  # (N, n_targets, n_modes)
-        eligible = None if share is None else share >= self.min_carbody_share
-        if eligible is not None:
+        eligible = None
+        if share is not None:
+            eligible = share >= self.min_carbody_share
             mac = np.where(eligible[:, None, :], mac, 0.0)
         return band_pairing(f, phi, self.shapes, self.f_target, self.band, mac, eligible)
 
@@ -226,9 +226,9 @@ class BoxFit:
         idx, best = self._partners(f[None], (self.sensors @ X)[None], share)
         idx, best = idx[0], best[0]
         reduced = self.pair(p[None, :])
-        return {"frequency_hz": f[idx], "mac": best, "index": idx,
-                "error_pct": 100 * (f[idx] / self.f_target - 1),
-                "max_error_pct": float(100 * np.max(np.abs(f[idx] / self.f_target - 1))),
+        error_pct = 100 * (f[idx] / self.f_target - 1)
+        return {"frequency_hz": f[idx], "mac": best, "index": idx, "error_pct": error_pct,
+                "max_error_pct": float(np.max(np.abs(error_pct))),
                 "reduced_frequency_hz": reduced.frequency_hz[0],
                 "reduced_vs_full_pct": 100 * (reduced.frequency_hz[0] / f[idx] - 1)}
 
