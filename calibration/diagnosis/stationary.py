@@ -1140,7 +1140,9 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     top = scan[0][1]
     order = sorted(scan, key=lambda r: (r[1] not in pressed and r[1] != top,
                                         not (r[1] == best_swarm and r[4] == "swarm"), r[0]))
-    budget = s.starts + 1 + 2 * len(pressed - {top}) + 2
+    # starts: the top panel's three sets, two sets of each other pressed panel, the best
+    # swarm's start and the settings.starts - 1 best-scoring other panels
+    budget = 3 + 2 * len(pressed - {top}) + 1 + (s.starts - 1)
     starts, seen = [], set()
     for err, panel, d, p0, which in order:  # the best divisor of each panel (of each factor set: top, pressed)
         key = (panel, which) if panel == top else (panel, which == "nominal") if panel in pressed else panel
