@@ -35,6 +35,9 @@ MODE_TYPES = {
                            lambda xi, eta: eta * np.cos(np.pi * xi / 2)),
     "breathing": ("breathing: the cross-section deforms, the floor centre moving against its edges",
                   lambda xi, eta: (1 - 2 * eta**2) * np.cos(np.pi * xi / 2)),
+    "breathing_2": ("second breathing: the cross-section deforms as in breathing, the front and rear halves "
+                    "in opposite senses",
+                    lambda xi, eta: (1 - 2 * eta**2) * np.sin(np.pi * xi)),
 }
 
 
