@@ -1174,6 +1174,7 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
 MASS_RATIOS = (0.005, 0.01, 0.02, 0.04, 0.07)  # of the carbody mass, scanned
 MASS_RANGE = (0.002, 0.12)  # of the carbody mass, fitted
 MOUNT_DAMPING = (0.01, 0.3)  # mounting damping ratio, fitted (scan at 0.05)
+MOUNT_FREQUENCY = (0.85, 1.05)  # mounting frequency scanned and fitted, x the band's low and high ends
 MOUNT_STEP = 1.5  # [m] along the car, scan grid of mount points
 MOUNT_SPAN = (0.86, 0.71)  # scan grid's extent as a share of the floor's half length and half width
 
@@ -1208,7 +1209,8 @@ def _equipment_scan(ctx: _Context, modes: Modes, zeta: np.ndarray, red: Reduced)
     G_se = (modes.exciter_shape * Zi) @ modes.sensor_shapes.T
     points = _mount_grid(ctx.model)
     A = red.mount_rows(points) @ modes.Y  # (n_pts, r)
-    fe = np.exp(np.arange(np.log(0.85 * s.band[0]), np.log(1.05 * s.band[1]), np.log(1.02)))
+    fe = np.exp(np.arange(np.log(MOUNT_FREQUENCY[0] * s.band[0]), np.log(MOUNT_FREQUENCY[1] * s.band[1]),
+                          np.log(1.02)))
     scale = 1.0 / np.sqrt(2 * (meas.sigma2 + s.floor**2))
 
     def scan(j, ratios):
@@ -1279,9 +1281,10 @@ def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
         slots, z = _extension_start(ctx, base, lay0, red, head)
         lay = Layout(len(p_b), slots.n, "equipment")
         lo, hi = _factor_bounds(ctx, slots.n)
-        lo = np.concatenate([lo, np.log([MASS_RANGE[0] * ctx.carbody_mass, 0.85 * s.band[0], MOUNT_DAMPING[0]]),
+        f_lo, f_hi = MOUNT_FREQUENCY[0] * s.band[0], MOUNT_FREQUENCY[1] * s.band[1]
+        lo = np.concatenate([lo, np.log([MASS_RANGE[0] * ctx.carbody_mass, f_lo, MOUNT_DAMPING[0]]),
                              [floor_x0, -half]])
-        hi = np.concatenate([hi, np.log([MASS_RANGE[1] * ctx.carbody_mass, 1.05 * s.band[1], MOUNT_DAMPING[1]]),
+        hi = np.concatenate([hi, np.log([MASS_RANGE[1] * ctx.carbody_mass, f_hi, MOUNT_DAMPING[1]]),
                              [floor_x1, half]])
         x0 = np.concatenate([head, np.log(z), x_ext])
         out.append(("underfloor_equipment", lay, slots, x0, lo, hi, None, red))
