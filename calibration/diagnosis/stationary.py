@@ -741,6 +741,7 @@ class _Context:
     meas_test: _Measured
     low: np.ndarray  # factor bounds (priors)
     high: np.ndarray
+    nominal: np.ndarray  # the priors' means within the bounds: the nominal factors
     default_zeta: float  # median identified damping ratio
     carbody_mass: float  # [kg]
     say: Callable
@@ -1095,7 +1096,7 @@ def _fit_softening(ctx: _Context, base: Fitted) -> list[Fitted]:
     residual; the best of them fitted fully (dampings free too)."""
     s = ctx.settings
     p_b, z_b, _ = base.layout.split(base.x)
-    p_nom = np.clip([q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)], ctx.low, ctx.high)
+    p_nom = ctx.nominal
     scan, swarms = [], []
     for panel in (pn.name for pn in ctx.model.vehicle.panels):  # any panel of the carbody may be the soft one
         sw = _panel_swarm(ctx, panel)
@@ -1259,8 +1260,9 @@ def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
     jointly with its factor set (briefly; the best fully, dampings free too)."""
     s = ctx.settings
     p_b, z_b, _ = base.layout.split(base.x)
-    p_nom = np.clip([q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)], ctx.low, ctx.high)
+    p_nom = ctx.nominal
     floor_x0, floor_x1, half = _floor_extent(ctx.model)
+    f_lo, f_hi = MOUNT_FREQUENCY[0] * s.band[0], MOUNT_FREQUENCY[1] * s.band[1]
     lay_p = Layout(len(p_b), 0, None)
     red_nom = _basis(ctx, lay_p, np.log(p_nom), None)
     fam_nom = Family.make(red_nom, base.family.slots, base.layout, ctx.default_zeta)
@@ -1281,7 +1283,6 @@ def _fit_equipment(ctx: _Context, base: Fitted) -> list[Fitted]:
         slots, z = _extension_start(ctx, base, lay0, red, head)
         lay = Layout(len(p_b), slots.n, "equipment")
         lo, hi = _factor_bounds(ctx, slots.n)
-        f_lo, f_hi = MOUNT_FREQUENCY[0] * s.band[0], MOUNT_FREQUENCY[1] * s.band[1]
         lo = np.concatenate([lo, np.log([MASS_RANGE[0] * ctx.carbody_mass, f_lo, MOUNT_DAMPING[0]]),
                              [floor_x0, -half]])
         hi = np.concatenate([hi, np.log([MASS_RANGE[1] * ctx.carbody_mass, f_hi, MOUNT_DAMPING[1]]),
@@ -1533,7 +1534,7 @@ def _context(campaign: Campaign, settings: StationarySettings, model: BoxModel |
     n_modes = modes_below(model, p_nom, settings.basis_hz)
     say(f"training {', '.join(train.label)}: {len(ident.modes)} modes; held out {', '.join(test.label)}; "
         f"reduced bases keep the model's {n_modes} modes below {settings.basis_hz:g} Hz")
-    return _Context(campaign, settings, ops, train, test, ident, ident_test, meas, meas_test, low, high, default,
+    return _Context(campaign, settings, ops, train, test, ident, ident_test, meas, meas_test, low, high, p_nom, default,
                     carbody_mass(model), say, n_modes)
 
 
