@@ -47,6 +47,7 @@ from .records import Layout, RecordSettings, Statistics, layout, read_records, s
 from .response import (FIT_NAMES, fit_response, input_coherence, input_noise_power, residual_cross_spectrum,
                        response_nrp, transfer)
 from .track import TrackSettings, fit_track, speed_folds, track_cross_validation, track_error
+from .threads import one_blas_thread
 from .wheels import WheelSettings, fit_polygon, line_spectrum, polygon_error
 
 FORMAT = "railcal-diagnosis/1"
@@ -353,6 +354,7 @@ def _alarms(ev: dict, s: DiagnoseSettings) -> list[str]:
 
 
 # ------------------------------------------------------------------------------- main
+@one_blas_thread  # the answer must not depend on the machine's thread count (threads.py)
 def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSettings(), progress=None) -> dict:
     say = progress or (lambda msg: None)
     lay = layout(campaign)

@@ -79,6 +79,7 @@ from ..identification.excitation import ShakerIdentification, ShakerSettings, id
 from ..models.box import BoxModel
 from ..models.box.fit import mac_matrix, sensor_operator
 from ..optimisers.pso import PSOSettings
+from .threads import one_blas_thread
 
 FORMAT = "railcal-diagnosis/1"
 
@@ -1538,6 +1539,7 @@ def _context(campaign: Campaign, settings: StationarySettings, model: BoxModel |
                     carbody_mass(model), say, n_modes)
 
 
+@one_blas_thread  # the answer must not depend on the machine's thread count (threads.py)
 def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | None = None,
                         settings: StationarySettings = StationarySettings()) -> dict:
     """Diagnose a stationary excitation campaign (module docstring): the result has the
