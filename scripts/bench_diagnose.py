@@ -55,6 +55,8 @@ def run_case(case: dict) -> dict:
             "extension": result["extension"] and result["extension"]["parameters"],
             "truth_details": truth["effect"] and truth["effect"]["details"],
             "hypotheses": {h["name"]: h["gain"] for h in result["hypotheses"]},
+            "systematic_left": {h["name"]: h["systematic_left"] for h in result["hypotheses"]
+                                if h["systematic_left"] is not None},
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
 

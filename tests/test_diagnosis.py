@@ -225,6 +225,22 @@ def test_effect_outside_the_catalogue_is_unexplained_with_its_evidence(tmp_path)
     assert any(abs(f / truth - 1) < 0.1 for f in peaks), peaks
 
 
+def test_an_extension_that_gains_without_explaining_the_systematic_residual_is_not_named(tmp_path):
+    """Bench seed 1572 (found the flaw): 555 kg on bogie 1 at 27 Hz. The sensor-offset fit
+    (a gyro gain) cuts the pitch gyro's held-out error by a third, enough by gain alone, yet
+    the residual stays as coherent with the rail input as before: a rescaling of what the
+    model cannot produce, not the cause."""
+    spec = UNCATALOGUED["bogie_equipment"]
+    result = diagnose(open_campaign(_campaign(tmp_path / "c", 1572, EffectChoice(spec, 554.5953114224303),
+                                              journeys=4)))
+    assert result["cause"] == "unexplained", result["evidence"]["summary"]
+    sensor = {h["name"]: h for h in result["hypotheses"]}["sensor_offset"]
+    assert sensor["penalised_gain"] >= result["settings"]["min_gain"]
+    assert sensor["worst_change"] >= -result["settings"]["max_loss"]
+    assert sensor["systematic_left"] > 2 * result["settings"]["max_systematic_left"]
+    assert any(line.startswith("sensor_offset gains") for line in result["evidence"]["summary"])
+
+
 def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_path, capsys):
     root = _campaign(tmp_path / "c", 78, EffectChoice(EFFECTS["cog_offset"], 1.2))
     out = tmp_path / "diag.json"

@@ -18,8 +18,13 @@ the cause, the extended model and the gain.
    runs (global start, then joint refinement with the baseline) and judged by the
    held-out error of the channels they change: *gain* = relative reduction of that
    error on the channel where it is largest, less ``penalty`` per extension parameter.
-5. **Decision.** The best hypothesis whose penalised gain exceeds ``min_gain`` and that
-   makes no held-out channel worse by more than ``max_loss`` is the cause. Otherwise
+5. **Decision.** The best hypothesis whose penalised gain exceeds ``min_gain``, that
+   makes no held-out channel worse by more than ``max_loss`` and, for a response
+   extension, that explains the systematic residual on the channel it gains on (held-out
+   error times the residual's coherence with the rail input falls to ``max_systematic_left``
+   of the baseline's or below: an extension that only rescales what it cannot model, e.g.
+   a gyro gain against a bogie resonance, leaves the residual as coherent as before) is
+   the cause. Otherwise
    ``none`` when the evidence shows nothing systematic (residual input-coherence, peaks
    and lines all below their thresholds), or ``unexplained`` with the evidence.
 
@@ -61,6 +66,9 @@ class DiagnoseSettings:
     min_gain: float = 0.15  # penalised held-out error reduction for a cause
     penalty: float = 0.01  # per extension parameter
     max_loss: float = 0.05  # largest held-out worsening of any channel
+    # a response extension must explain the systematic residual it gains on: on its best
+    # channel, held-out error x residual input-coherence, after / before, at most this
+    max_systematic_left: float = 0.25
     coherence_alarm: float = 0.35  # residual input-coherence (mean over signal bands) that is systematic
     peak_alarm: float = 4.0  # residual PSD peak over its floor
     line_alarm: float = 30.0  # wheel-line power over floor (with one-sided wheelset asymmetry)
@@ -167,22 +175,27 @@ def _speed_scaling(ctx: _Context, fit, c: int, f0: float) -> dict:
     return {"scaling": "ambiguous", "fixed_ratio": a, "scaled_ratio": b}
 
 
-def _evidence(ctx: _Context, base_fit) -> dict:
+def _channel_evidence(ctx: _Context, fit, masks=None) -> tuple[dict, np.ndarray]:
+    """Per response channel, what the residuals of ``fit`` (a response fit) show: held-out
+    NRP, coherence with the rail input, PSD peaks over the floor (speed scaling, phase
+    between the car ends), flatness; and the signal-band masks (``masks``: given ones, e.g.
+    the baseline's, so that a fit is judged on the same bands)."""
     s, lay = ctx.settings, ctx.lay
     bw = np.diff(ctx.stats.edges)
     f = ctx.stats.centres
     all_keys = set(ctx.stats.S)
-    R, P = response_nrp(ctx.stats, lay, all_keys, base_fit.parameters, base_fit.extras, base_fit.sensors,
+    R, P = response_nrp(ctx.stats, lay, all_keys, fit.parameters, fit.extras, fit.sensors,
                         by_band=True)
-    _, Ptest = response_nrp(ctx.stats, lay, _keys(ctx.stats, ctx.test), base_fit.parameters, base_fit.extras,
-                            base_fit.sensors, by_band=True)
-    eiv = input_noise_power(ctx.stats, lay, all_keys, base_fit.parameters, base_fit.extras, base_fit.sensors)
+    _, Ptest = response_nrp(ctx.stats, lay, _keys(ctx.stats, ctx.test), fit.parameters, fit.extras,
+                            fit.sensors, by_band=True)
+    eiv = input_noise_power(ctx.stats, lay, all_keys, fit.parameters, fit.extras, fit.sensors)
     clean = eiv < s.input_noise_share * R  # bands where the rail input's own noise does not dominate
-    masks = _signal_bands(Ptest, bw, s.signal_factor) & clean
-    coh = input_coherence(ctx.stats, lay, all_keys, base_fit.parameters, base_fit.extras, base_fit.sensors)
-    nrp_test = _response_errors(ctx, base_fit, masks)
+    if masks is None:
+        masks = _signal_bands(Ptest, bw, s.signal_factor) & clean
+    coh = input_coherence(ctx.stats, lay, all_keys, fit.parameters, fit.extras, fit.sensors)
+    nrp_test = _response_errors(ctx, fit, masks)
     S_all, _ = ctx.stats.total()
-    G = transfer(base_fit.parameters, base_fit.extras, base_fit.sensors, lay, f)
+    G = transfer(fit.parameters, fit.extras, fit.sensors, lay, f)
     Rx = residual_cross_spectrum(G, S_all, 4, len(lay.responses))
     pairs = {}  # residual phase between the ends of the car: bogie-end carbody sensors (front, rear)
     ends = [c for c, o in enumerate(lay.responses) if o.body == "carbody" and o.kind == "acceleration"]
@@ -198,7 +211,7 @@ def _evidence(ctx: _Context, base_fit) -> dict:
         share = R[:, c] / np.maximum(P[:, c], 1e-300)
         peaks = []
         for f0, rr, sh in _peaks(f, ratio, share, (0.5, 40.0), s.peak_alarm):
-            peak = {"frequency_hz": f0, "over_floor": rr, "residual_share": sh, **_speed_scaling(ctx, base_fit, c, f0)}
+            peak = {"frequency_hz": f0, "over_floor": rr, "residual_share": sh, **_speed_scaling(ctx, fit, c, f0)}
             if pairs:
                 k = int(np.argmin(np.abs(f - f0)))
                 x = Rx[k, pairs["i"], pairs["j"]]
@@ -217,6 +230,12 @@ def _evidence(ctx: _Context, base_fit) -> dict:
             "low_band_coherence": float(np.average(coh[(f < 3) & m, c], weights=R[(f < 3) & m, c]))
             if ((f < 3) & m).any() else 0.0,
         }
+    return channels, masks
+
+
+def _evidence(ctx: _Context, base_fit) -> dict:
+    s = ctx.settings
+    channels, masks = _channel_evidence(ctx, base_fit)
     spec = line_spectrum(ctx.records, ctx.rows, set(ctx.campaign.run_ids), s.wheels)
     i, line_ratio = spec.strongest(s.wheels)
     a1, a2 = spec.axle1[i], spec.axle2[i]
@@ -274,6 +293,8 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
         model = {"parameters": fit.parameters.as_dict(), "extras": _extras_json(fit.extras),
                  "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}}
         at = [n for n in fit.at_bounds if n in params]
+        left, _ = _channel_evidence(ctx, fit, masks)
+        residual = {n: {"before": _systematic(ev["channels"][n]), "after": _systematic(left[n])} for n in names}
     elif ext.kind == "wheel":
         poly = fit_polygon(ctx.records, ctx.rows, ctx.train, s.wheels)
         before = np.array([polygon_error(ctx.records, ctx.rows, ctx.test, None, s.wheels)])
@@ -282,6 +303,7 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
         params = poly.to_json()
         model = {"wheel_polygon": params}
         at = []
+        residual = None
     else:
         # held out by speed (the model's claim is about speeds it was not fitted at; held-out
         # runs at the training runs' speeds cannot tell): two folds, lower and upper speeds
@@ -301,16 +323,28 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
         at = [n for n, v, (lo, hi) in (("track_resonance_hz", tf.f_t, s.track.f_t_range),
                                        ("damping_ratio", tf.zeta, s.track.zeta_range))
               if min(abs(np.log(v / lo)), abs(np.log(hi / v))) < 0.01 * np.log(hi / lo)]
+        residual = None
     red = reductions(before, after)
     seen = ~np.isnan(red)
     best = int(np.nanargmax(red)) if seen.any() else 0
     gain = float(red[best]) if seen.any() else 0.0
+    left = None
+    if residual is not None and seen.any():  # the systematic residual left on the best channel
+        r = residual[names[best]]
+        left = (1.0 - gain) * r["after"]["input_coherence"] / max(r["before"]["input_coherence"], 1e-12)
     return {"name": ext.name, "kind": ext.kind, "description": ext.description, "parameters": params,
             "parameters_at_bounds": at, "model": model, "n_params": ext.n_params,
             "heldout_error": {n: {"before": float(b), "after": float(a), "reduction": float(r) if ok else None}
                               for n, b, a, r, ok in zip(names, before, after, red, seen)},
-            "best_channel": names[best], "gain": gain, "worst_change": float(np.nanmin(red)) if seen.any() else 0.0,
+            "residual": residual, "systematic_left": left, "best_channel": names[best], "gain": gain, "worst_change": float(np.nanmin(red)) if seen.any() else 0.0,
             "penalised_gain": gain - s.penalty * ext.n_params}
+
+
+def _systematic(channel: dict) -> dict:
+    """What is systematic in one channel's residual: its coherence with the rail input and
+    its strongest PSD peak over the floor among those carrying > 30 % of the measured power."""
+    peaks = [p["over_floor"] for p in channel["peaks"] if p["residual_share"] > 0.3]
+    return {"input_coherence": channel["input_coherence"], "peak_over_floor": max(peaks, default=0.0)}
 
 
 def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -393,7 +427,8 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
         h["evidence_score"] = scores[name]
         hyps.append(h)
         say(f"{name}: held-out gain {h['gain']:.1%} on {h['best_channel']}")
-    ok = [h for h in hyps if h["penalised_gain"] >= settings.min_gain and h["worst_change"] >= -settings.max_loss]
+    ok = [h for h in hyps if h["penalised_gain"] >= settings.min_gain and h["worst_change"] >= -settings.max_loss
+          and (h["systematic_left"] is None or h["systematic_left"] <= settings.max_systematic_left)]
     alarms = _alarms(ev, settings)
     if ok:
         best = max(ok, key=lambda h: h["penalised_gain"])
@@ -401,7 +436,7 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
     else:
         best = None
         cause = "unexplained" if alarms else "none"
-    words = _summary(cause, best, alarms, ev, hyps)
+    words = _summary(cause, best, alarms, ev, hyps, settings)
     masks = ev.pop("masks")
     ev["signal_band_count"] = {n: int(masks[:, c].sum()) for c, n in enumerate(lay.response_names)}
     return {
@@ -416,12 +451,12 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
         "hypotheses": [{k: v for k, v in h.items() if k != "model"} for h in hyps],
         "split": {"training_runs": sorted(train), "heldout_runs": sorted(test)},
         "settings": {"min_gain": settings.min_gain, "penalty_per_parameter": settings.penalty,
-                     "max_loss": settings.max_loss},
+                     "max_loss": settings.max_loss, "max_systematic_left": settings.max_systematic_left},
         "_plot": {"ctx": ctx, "base_fit": base_fit, "best": best},
     }
 
 
-def _summary(cause, best, alarms, ev, hyps) -> list[str]:
+def _summary(cause, best, alarms, ev, hyps, s: DiagnoseSettings) -> list[str]:
     out = []
     if best is not None:
         out.append(f"cause: {cause} ({best['description']}); held-out error on {best['best_channel']} reduced by "
@@ -434,6 +469,12 @@ def _summary(cause, best, alarms, ev, hyps) -> list[str]:
     else:
         out.append("none: the baseline explains the data within the noise (no systematic residual, no extension gains)")
     out += alarms
+    for h in hyps:
+        if h is not best and h["systematic_left"] is not None and h["penalised_gain"] >= s.min_gain \
+                and h["systematic_left"] > s.max_systematic_left:
+            out.append(f"{h['name']} gains {h['gain']:.0%} on {h['best_channel']} but leaves "
+                       f"{h['systematic_left']:.0%} of its systematic residual (error x input coherence): "
+                       "it does not explain it")
     others = sorted(hyps, key=lambda h: -h["penalised_gain"])
     out.append("hypotheses by held-out gain: " + ", ".join(f"{h['name']} {h['gain']:.0%}" for h in others))
     if ev["parameters_at_bounds"]:
