@@ -336,7 +336,8 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
             "parameters_at_bounds": at, "model": model, "n_params": ext.n_params,
             "heldout_error": {n: {"before": float(b), "after": float(a), "reduction": float(r) if ok else None}
                               for n, b, a, r, ok in zip(names, before, after, red, seen)},
-            "residual": residual, "systematic_left": left, "best_channel": names[best], "gain": gain, "worst_change": float(np.nanmin(red)) if seen.any() else 0.0,
+            "residual": residual, "systematic_left": left, "best_channel": names[best], "gain": gain,
+            "worst_change": float(np.nanmin(red)) if seen.any() else 0.0,
             "penalised_gain": gain - s.penalty * ext.n_params}
 
 
