@@ -32,9 +32,9 @@ Held-out error per channel kind: response channels, NRP over the bands where the
 measured channel stands 4x above its own spectral floor (noise-only bands excluded, the
 same bands before and after); consistency, its mean square after the wheel line is
 removed; axle boxes, the mean squared log10 misfit of the spectra's collapse over speed
-less their sampling variance, held out *by speed* (the lower half of the speed bins
-predicted from the upper and back: a track resonance is a claim about other speeds,
-which held-out runs at the training runs' speeds cannot test).
+less their sampling variance, held out *by speed* (low, middle and high speed bins, each
+predicted from the other two, :func:`.track.speed_folds`: a track resonance is a claim
+about other speeds, which held-out runs at the training runs' speeds cannot test).
 """
 from __future__ import annotations
 
@@ -306,7 +306,7 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
         residual = None
     else:
         # held out by speed (the model's claim is about speeds it was not fitted at; held-out
-        # runs at the training runs' speeds cannot tell): two folds, lower and upper speeds
+        # runs at the training runs' speeds cannot tell): low, middle, high speeds, each from the others
         tf = fit_track(ctx.stats, set(ctx.stats.S), True, s.track)
         before, after = track_cross_validation(ctx.stats, set(ctx.stats.S), s.track)
         if before.size < 2:  # one speed bin: held-out runs instead
