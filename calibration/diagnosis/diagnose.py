@@ -56,6 +56,8 @@ from .threads import one_blas_thread
 from .wheels import WheelSettings, fit_polygon, line_spectrum, polygon_error
 
 FORMAT = "railcal-diagnosis/1"
+#: a residual PSD peak is systematic when it carries more than this share of the measured power
+PEAK_SHARE = 0.3
 
 
 @dataclass(frozen=True)
@@ -341,10 +343,16 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
             "penalised_gain": gain - s.penalty * ext.n_params}
 
 
+def _leaves_systematic(h: dict, s: DiagnoseSettings) -> bool:
+    """Does response extension ``h`` leave more of the systematic residual on its best
+    channel than ``max_systematic_left``, i.e. not explain it? (False for other kinds.)"""
+    return h["systematic_left"] is not None and h["systematic_left"] > s.max_systematic_left
+
+
 def _systematic(channel: dict) -> dict:
     """What is systematic in one channel's residual: its coherence with the rail input and
-    its strongest PSD peak over the floor among those carrying > 30 % of the measured power."""
-    peaks = [p["over_floor"] for p in channel["peaks"] if p["residual_share"] > 0.3]
+    its strongest PSD peak over the floor among those carrying > PEAK_SHARE of the measured power."""
+    peaks = [p["over_floor"] for p in channel["peaks"] if p["residual_share"] > PEAK_SHARE]
     return {"input_coherence": channel["input_coherence"], "peak_over_floor": max(peaks, default=0.0)}
 
 
@@ -372,7 +380,7 @@ def _alarms(ev: dict, s: DiagnoseSettings) -> list[str]:
             out.append(f"{name}: residual coherent with the rail input ({c['input_coherence']:.2f}), "
                        "a systematic model error")
         for p in c["peaks"]:
-            if p["over_floor"] >= s.peak_alarm and p["residual_share"] > 0.3:
+            if p["over_floor"] >= s.peak_alarm and p["residual_share"] > PEAK_SHARE:
                 kind = p.get("scaling", "unknown").replace("_", " ")
                 extra = f", wavelength {p['wavelength_m']:.2f} m" if "wavelength_m" in p else ""
                 fr = p.get("front_rear_residual")
@@ -429,7 +437,7 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
         hyps.append(h)
         say(f"{name}: held-out gain {h['gain']:.1%} on {h['best_channel']}")
     ok = [h for h in hyps if h["penalised_gain"] >= settings.min_gain and h["worst_change"] >= -settings.max_loss
-          and (h["systematic_left"] is None or h["systematic_left"] <= settings.max_systematic_left)]
+          and not _leaves_systematic(h, settings)]
     alarms = _alarms(ev, settings)
     if ok:
         best = max(ok, key=lambda h: h["penalised_gain"])
@@ -471,8 +479,7 @@ def _summary(cause, best, alarms, ev, hyps, s: DiagnoseSettings) -> list[str]:
         out.append("none: the baseline explains the data within the noise (no systematic residual, no extension gains)")
     out += alarms
     for h in hyps:
-        if h is not best and h["systematic_left"] is not None and h["penalised_gain"] >= s.min_gain \
-                and h["systematic_left"] > s.max_systematic_left:
+        if h is not best and h["penalised_gain"] >= s.min_gain and _leaves_systematic(h, s):
             out.append(f"{h['name']} gains {h['gain']:.0%} on {h['best_channel']} but leaves "
                        f"{h['systematic_left']:.0%} of its systematic residual (error x input coherence): "
                        "it does not explain it")

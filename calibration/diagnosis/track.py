@@ -191,9 +191,10 @@ def speed_folds(stats: Statistics, keys) -> list[tuple[set, set]]:
     secs = np.array([sum(stats.seconds[k] for k in keys if k[1] == b) for b in bins])
     share = np.cumsum(secs) / secs.sum()
     group = np.minimum((share - 0.5 * secs / secs.sum()) * n, n - 1).astype(int)  # by each bin's data midpoint
+    group_of = dict(zip(bins, group))
     folds = []
     for g in range(n):
-        held = {k for k in keys if group[bins.index(k[1])] == g}
+        held = {k for k in keys if group_of[k[1]] == g}
         if held and held != keys:
             folds.append((keys - held, held))
     return folds
