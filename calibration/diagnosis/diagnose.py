@@ -19,7 +19,11 @@ the cause, the extended model and the gain.
    held-out error of the channels they change: *gain* = relative reduction of that
    error on the channel where it is largest, less ``penalty`` per extension parameter.
 5. **Decision.** The best hypothesis whose penalised gain exceeds ``min_gain``, that
-   makes no held-out channel worse by more than ``max_loss`` and, for a response
+   makes no held-out channel worse by more than ``max_loss`` of its error (unless that
+   worsening is under ``max_loss`` of what the hypothesis gains on its best channel, in
+   the same units: a channel explained to within a per cent of its signal that loses a
+   tenth of a per cent does not outweigh a carbody channel's error cut by nine tenths)
+   and, for a response
    extension, that explains the systematic residual on the channel it gains on (held-out
    error times the residual's coherence with the rail input falls to ``max_systematic_left``
    of the baseline's or below: an extension that only rescales what it cannot model, e.g.
@@ -67,7 +71,7 @@ class DiagnoseSettings:
     track: TrackSettings = field(default_factory=TrackSettings)
     min_gain: float = 0.15  # penalised held-out error reduction for a cause
     penalty: float = 0.01  # per extension parameter
-    max_loss: float = 0.05  # largest held-out worsening of any channel
+    max_loss: float = 0.05  # largest held-out worsening of any channel (relative, and against the gain)
     # a response extension must explain the systematic residual it gains on: on its best
     # channel, held-out error x residual input-coherence, after / before, at most this
     max_systematic_left: float = 0.25
@@ -340,7 +344,21 @@ def _fit_hypothesis(ctx: _Context, ext: Extension, base_fit, ev) -> dict:
                               for n, b, a, r, ok in zip(names, before, after, red, seen)},
             "residual": residual, "systematic_left": left, "best_channel": names[best], "gain": gain,
             "worst_change": float(np.nanmin(red)) if seen.any() else 0.0,
+            "losses": _losses(names, before, after, best, s.max_loss),
             "penalised_gain": gain - s.penalty * ext.n_params}
+
+
+def _losses(names, before, after, best: int, max_loss: float) -> list[str]:
+    """Channels a hypothesis makes worse on held-out data: error up by more than
+    ``max_loss`` of its own and by more than ``max_loss`` of the error the hypothesis
+    removes on its best channel (a hypothesis's channels share one unit: NRP for response
+    channels, log misfit for the axle boxes). Seed 1825 (CoG 0.96 m off): the fit cut the
+    carbody centre's error from 0.72 to 0.07 while the pitch gyro's rose from 0.0088 to
+    0.0099; by the relative rule alone that 12 % loss left the cause unnamed."""
+    before, after = np.asarray(before, float), np.asarray(after, float)
+    removed = max(before[best] - after[best], 0.0)
+    return [n for n, b, a in zip(names, before, after)
+            if b > 0 and a - b > max_loss * b and a - b > max_loss * removed]
 
 
 def _leaves_systematic(h: dict, s: DiagnoseSettings) -> bool:
@@ -436,7 +454,7 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
         h["evidence_score"] = scores[name]
         hyps.append(h)
         say(f"{name}: held-out gain {h['gain']:.1%} on {h['best_channel']}")
-    ok = [h for h in hyps if h["penalised_gain"] >= settings.min_gain and h["worst_change"] >= -settings.max_loss
+    ok = [h for h in hyps if h["penalised_gain"] >= settings.min_gain and not h["losses"]
           and not _leaves_systematic(h, settings)]
     alarms = _alarms(ev, settings)
     if ok:
@@ -479,6 +497,10 @@ def _summary(cause, best, alarms, ev, hyps, s: DiagnoseSettings) -> list[str]:
         out.append("none: the baseline explains the data within the noise (no systematic residual, no extension gains)")
     out += alarms
     for h in hyps:
+        if h is not best and h["penalised_gain"] >= s.min_gain and h["losses"]:
+            worse = ", ".join(f"{n} ({h['heldout_error'][n]['before']:.3g} -> {h['heldout_error'][n]['after']:.3g})"
+                              for n in h["losses"])
+            out.append(f"{h['name']} gains {h['gain']:.0%} on {h['best_channel']} but makes held-out {worse} worse")
         if h is not best and h["penalised_gain"] >= s.min_gain and _leaves_systematic(h, s):
             out.append(f"{h['name']} gains {h['gain']:.0%} on {h['best_channel']} but leaves "
                        f"{h['systematic_left']:.0%} of its systematic residual (error x input coherence): "
