@@ -26,10 +26,12 @@ the response does not: on one effect-free campaign (seed 1760) the model's bogie
 the diagnosis raised a false alarm; the axle-box consistency channel, which cancels the
 rail, has no such content, so the input-noise estimate missed it. With the taper the same
 campaign's residual coherence is 0.006. The taper also softens the edges of each window,
-where the response to input before the window is not predicted. Cross-spectra of all channels are summed over bins into bands of
-relative width ``rel_width`` (and at least ``min_bins`` bins): a linear model's residual
-energy is then a quadratic form in these sums, so fitting a model costs a few hundred
-small matrix products, whatever the campaign's length. Sums are kept per (run, speed bin)
+where the response to input before the window is not predicted. Each window stands for its
+hop in the seconds kept, so a cell's seconds are its data's (a record shorter than
+``window`` plus a hop counts for a little less). Cross-spectra of all channels are summed
+over bins into bands of relative width ``rel_width`` (and at least ``min_bins`` bins): a
+linear model's residual energy is then a quadratic form in these sums, so fitting a model
+costs a few hundred small matrix products, whatever the campaign's length. Sums are kept per (run, speed bin)
 so held-out runs and speed-frequency maps come from the same statistics.
 """
 from __future__ import annotations
