@@ -262,3 +262,27 @@ def test_the_carbody_basis_is_one_eigen_solve_of_the_dense_modes_and_the_static_
     X = scipy.sparse.linalg.spsolve((K - sigma * M).tocsc(), loads)
     fit = V @ (V.T @ (M @ X))
     assert np.linalg.norm(X - fit) < 1e-9 * np.linalg.norm(X)
+
+
+def test_end_zone_rigidity_holds_the_energy_share_of_its_strips():
+    """A uniform in-plane shear (u = y) stores energy evenly over the panel: the two end
+    strips of length z hold 2 z / a of it, exactly (the 1D integrals are split, not
+    approximated)."""
+    strip = _strip(a=6.0)
+    q = np.zeros(strip.n_dof)
+    q[1] = 1.0  # u = p_0(xi) p_1(eta): a uniform shear strain u_y
+    whole, ends = strip.unit_stiffness()["A66"], strip.unit_stiffness(end_zone=1.5)["A66"]
+    assert q @ ends @ q == pytest.approx(2 * 1.5 / 6.0 * (q @ whole @ q), rel=1e-12)
+    with pytest.raises(ValueError, match="overlap"):
+        strip.unit_stiffness(end_zone=3.0)
+
+
+def test_an_end_zone_factor_splits_the_panel_and_leaves_the_nominal_vehicle_unchanged():
+    zone = StiffnessParameter("plate_ends", "panel", "plate", ("A11", "D11"), end_zone=1.0)
+    rest = StiffnessParameter("plate_rest", "panel", "plate", ("A11", "D11"))
+    plain, zoned = _alone(_strip()), _alone(_strip(), parameters=(zone, rest))
+    assert np.allclose(zoned.stiffness(np.ones(2)).toarray(), plain.stiffness(np.ones(0)).toarray(),
+                       rtol=1e-12, atol=1e-6)
+    # softer ends lower the free-free bar's first extension and the beam's first bending
+    f_plain, f_soft = _frequencies(plain, n=8), _frequencies(zoned, np.array([0.3, 1.0]), n=8)
+    assert np.all(f_soft[6:] < f_plain[6:])

@@ -100,6 +100,9 @@ class StiffnessParameter:
     group: str
     terms: tuple[str, ...]  # panel: rigidity names; joint: ("k_t",) or ("k_r",)
     description: str = ""
+    # panel: > 0 scales only the strips of this length [m] at both ends of each panel's e1
+    # axis; the rest of the panel stays with the group's other factor (or nominal)
+    end_zone: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -281,8 +284,9 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
     M, C, K0 = _Triplets(n), _Triplets(n), _Triplets(n)
     K_units = {name: _Triplets(n) for name in names}
 
-    def owner(kind, group, term):
-        hits = [q.name for q in vehicle.parameters if q.kind == kind and q.group == group and term in q.terms]
+    def owner(kind, group, term, zoned=False):
+        hits = [q.name for q in vehicle.parameters if q.kind == kind and q.group == group and term in q.terms
+                and (q.end_zone > 0) == zoned]
         if len(hits) > 1:
             raise ValueError(f"{kind} {group} {term} is scaled by several parameters: {hits}")
         return K0 if not hits else K_units[hits[0]]
@@ -291,8 +295,19 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
         idx = np.arange(slices[pn.name].start, slices[pn.name].stop)
         M.add(idx, pn.rho_h * pn.unit_mass())
         units = pn.unit_stiffness()
+        zones = [q for q in vehicle.parameters if q.kind == "panel" and q.group == pn.group and q.end_zone > 0]
         for term in MEMBRANE + BENDING:
-            owner("panel", pn.group, term).add(idx, pn.rigidity[term] * units[term])
+            zoned = [q for q in zones if term in q.terms]
+            if len(zoned) > 1:
+                raise ValueError(f"panel {pn.group} {term} end zones are scaled by several parameters: "
+                                 f"{[q.name for q in zoned]}")
+            zone = zoned[0] if zoned else None
+            if zone is None:
+                owner("panel", pn.group, term).add(idx, pn.rigidity[term] * units[term])
+            else:  # the end strips to the zone's factor, the rest to the group's
+                end = pn.unit_stiffness(zone.end_zone)[term]
+                K_units[zone.name].add(idx, pn.rigidity[term] * end)
+                owner("panel", pn.group, term).add(idx, pn.rigidity[term] * (units[term] - end))
 
     for rb in vehicle.bodies:
         idx = np.arange(slices[rb.name].start, slices[rb.name].stop)

@@ -79,9 +79,18 @@ class Panel:
         """Mass matrix for rho_h = 1: (a b / 4) I, the basis being orthonormal."""
         return np.eye(self.n_dof) * self.a * self.b / 4
 
-    def unit_stiffness(self) -> dict[str, np.ndarray]:
-        """One (n_dof, n_dof) matrix per rigidity, for that rigidity = 1."""
-        Ex, Ey = basis.integrals(self.order[0]), basis.integrals(self.order[1])
+    def unit_stiffness(self, end_zone: float = 0.0) -> dict[str, np.ndarray]:
+        """One (n_dof, n_dof) matrix per rigidity, for that rigidity = 1; with ``end_zone``
+        [m] > 0, of the two strips of that length at the ends of the panel's e1 axis only
+        (a rigidity that differs there, e.g. a side wall's at its door openings)."""
+        if end_zone > 0:
+            if 2 * end_zone >= self.a:
+                raise ValueError(f"panel {self.name}: end zones of {end_zone} m overlap (length {self.a} m)")
+            c = 1.0 - 2.0 * end_zone / self.a
+            Ex = basis.integrals_over(self.order[0], ((-1.0, -c), (c, 1.0)))
+        else:
+            Ex = basis.integrals(self.order[0])
+        Ey = basis.integrals(self.order[1])
         a, b, n = self.a, self.b, self.n_terms
 
         def kron(r, s, p, q):
