@@ -7,7 +7,9 @@ Shinkansen car has its vestibule doors in both sides, are softer in torsion than
 the first torsion twists most at the middle, the second at the quarter points, so soft ends
 lower the second relative to the first. Prints f2 / f1 for zone lengths and rigidity ratios,
 and for rotary inertia added at the middle (the first torsion's node). Finite elements,
-500 of them; the exact uniform value is 2.
+500 of them; the exact uniform value is 2. The box model does not follow the bar: softened
+side walls at its door zones move its torsion pair's ratio only from 2.00 to 1.92
+(``check_figure5_credible.py --side-end-zone``; README, issue 4's figures).
 
     python scripts/estimate_torsion_ratio.py
 """
