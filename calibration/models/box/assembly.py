@@ -296,6 +296,7 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
         M.add(idx, pn.rho_h * pn.unit_mass())
         units = pn.unit_stiffness()
         zones = [q for q in vehicle.parameters if q.kind == "panel" and q.group == pn.group and q.end_zone > 0]
+        strips = {z: pn.unit_stiffness(z) for z in {q.end_zone for q in zones}}  # once per zone length
         for term in MEMBRANE + BENDING:
             zoned = [q for q in zones if term in q.terms]
             if len(zoned) > 1:
@@ -305,7 +306,7 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
             if zone is None:
                 owner("panel", pn.group, term).add(idx, pn.rigidity[term] * units[term])
             else:  # the end strips to the zone's factor, the rest to the group's
-                end = pn.unit_stiffness(zone.end_zone)[term]
+                end = strips[zone.end_zone][term]
                 K_units[zone.name].add(idx, pn.rigidity[term] * end)
                 owner("panel", pn.group, term).add(idx, pn.rigidity[term] * (units[term] - end))
 
