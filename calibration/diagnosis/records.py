@@ -31,8 +31,9 @@ hop in the seconds kept, so a cell's seconds are its data's (a record shorter th
 ``window`` plus a hop counts for a little less). Cross-spectra of all channels are summed
 over bins into bands of relative width ``rel_width`` (and at least ``min_bins`` bins): a
 linear model's residual energy is then a quadratic form in these sums, so fitting a model
-costs a few hundred small matrix products, whatever the campaign's length. Sums are kept per (run, speed bin)
-so held-out runs and speed-frequency maps come from the same statistics.
+costs a few hundred small matrix products, whatever the campaign's length. Sums are kept
+per (run, speed bin) so held-out runs and speed-frequency maps come from the same
+statistics.
 """
 from __future__ import annotations
 

@@ -284,28 +284,31 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
     M, C, K0 = _Triplets(n), _Triplets(n), _Triplets(n)
     K_units = {name: _Triplets(n) for name in names}
 
-    def owner(kind, group, term, zoned=False):
-        hits = [q.name for q in vehicle.parameters if q.kind == kind and q.group == group and term in q.terms
+    def scaled_by(kind, group, term, zoned=False):
+        """The parameter scaling this term (of the panels' end strips with ``zoned``), or None."""
+        hits = [q for q in vehicle.parameters if q.kind == kind and q.group == group and term in q.terms
                 and (q.end_zone > 0) == zoned]
         if len(hits) > 1:
-            raise ValueError(f"{kind} {group} {term} is scaled by several parameters: {hits}")
-        return K0 if not hits else K_units[hits[0]]
+            where = "end strips of " if zoned else ""
+            raise ValueError(f"{where}{kind} {group} {term} is scaled by several parameters: {[q.name for q in hits]}")
+        return hits[0] if hits else None
+
+    def owner(kind, group, term):
+        q = scaled_by(kind, group, term)
+        return K0 if q is None else K_units[q.name]
 
     for pn in vehicle.panels:
         idx = np.arange(slices[pn.name].start, slices[pn.name].stop)
         M.add(idx, pn.rho_h * pn.unit_mass())
         units = pn.unit_stiffness()
-        zones = [q for q in vehicle.parameters if q.kind == "panel" and q.group == pn.group and q.end_zone > 0]
-        strips = {z: pn.unit_stiffness(z) for z in {q.end_zone for q in zones}}  # once per zone length
+        strips = {}  # end-strip matrices, once per zone length
         for term in MEMBRANE + BENDING:
-            zoned = [q for q in zones if term in q.terms]
-            if len(zoned) > 1:
-                raise ValueError(f"panel {pn.group} {term} end zones are scaled by several parameters: "
-                                 f"{[q.name for q in zoned]}")
-            zone = zoned[0] if zoned else None
+            zone = scaled_by("panel", pn.group, term, zoned=True)
             if zone is None:
                 owner("panel", pn.group, term).add(idx, pn.rigidity[term] * units[term])
             else:  # the end strips to the zone's factor, the rest to the group's
+                if zone.end_zone not in strips:
+                    strips[zone.end_zone] = pn.unit_stiffness(zone.end_zone)
                 end = strips[zone.end_zone][term]
                 K_units[zone.name].add(idx, pn.rigidity[term] * end)
                 owner("panel", pn.group, term).add(idx, pn.rigidity[term] * (units[term] - end))

@@ -42,25 +42,20 @@ def values(order: int, x: np.ndarray, derivative: int = 0) -> np.ndarray:
 @lru_cache(maxsize=None)
 def integrals(order: int) -> dict[tuple[int, int], np.ndarray]:
     """E[(r, s)] = int_{-1}^{1} p_i^(r) p_k^(s) dxi for r, s in 0..2, each (order+1)^2."""
-    xg, wg = legendre.leggauss(order + 2)  # exact up to degree 2 order + 3
-    V = [values(order, xg, r) for r in range(3)]
-    out = {}
-    for r in range(3):
-        for s in range(3):
-            out[(r, s)] = (V[r] * wg[:, None]).T @ V[s]
-    return out
+    return integrals_over(order, ((-1.0, 1.0),))
 
 
 @lru_cache(maxsize=None)
 def integrals_over(order: int, intervals: tuple[tuple[float, float], ...]) -> dict[tuple[int, int], np.ndarray]:
     """As :func:`integrals`, over the union of ``intervals`` ((lo, hi) within [-1, 1], not
-    overlapping) instead of the whole of [-1, 1]: the same exact Gauss rule on each."""
+    overlapping) instead of the whole of [-1, 1]: on each, the Gauss rule exact up to degree
+    2 order + 3 (mapped so that (-1, 1) takes its nodes and weights unchanged)."""
     xg, wg = legendre.leggauss(order + 2)
     out = {(r, s): np.zeros((order + 1, order + 1)) for r in range(3) for s in range(3)}
     for lo, hi in intervals:
         if not -1.0 <= lo < hi <= 1.0:
             raise ValueError(f"interval ({lo}, {hi}) is not inside [-1, 1]")
-        x, w = lo + (xg + 1) * (hi - lo) / 2, wg * (hi - lo) / 2
+        x, w = (lo + hi) / 2 + xg * (hi - lo) / 2, wg * (hi - lo) / 2
         V = [values(order, x, r) for r in range(3)]
         for r in range(3):
             for s in range(3):
