@@ -68,14 +68,17 @@ def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
 
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
-                  sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0) -> BoxCalibration:
+                  sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0,
+                  min_mac: float = 0.0) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
-    ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability."""
+    ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability;
+    ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`)."""
     model = assemble(shinkansen_vehicle()) if model is None else model
     names = tuple(p.name for p in search)
     if names != model.names:
         raise InputError(f"the search must name the model's parameters {model.names}, got {names}", key="priors")
-    fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share)
+    fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share,
+                 min_mac=min_mac)
     low, high = bounds(search)
     centre = np.array([p.mean for p in search])
     t0 = time.perf_counter()
@@ -103,6 +106,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     ident = identifiability(fit, p, tuple(t.label for t in targets), sigma_f=sigma, low=low, high=high).to_json()
     rows = [{"label": t.label, "measured_hz": t.frequency_hz, "model_hz": float(final["frequency_hz"][i]),
              "error_pct": float(final["error_pct"][i]), "mac": float(final["mac"][i]),
+             "sound": bool(final["sound"][i]),
              "model_mode": int(final["index"][i]) + 1} for i, t in enumerate(targets)]
     return BoxCalibration(dict(zip(names, map(float, p))), rows, float(final["max_error_pct"]), pso, refinement,
                           [float(x) for x in check["reduced_vs_full_pct"]], ident,

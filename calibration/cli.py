@@ -244,6 +244,10 @@ def _calibrate_box(args) -> int:
 #: swarm otherwise paired the lateral-vertical type with a bogie mode whose floor motion is
 #: 1 % of a carbody mode's but has the pattern's shape.
 TYPED_MIN_CARBODY_SHARE = 0.5
+#: ... and counts only when sound: MAC with the pattern >= this, its partner no other
+#: target's (BoxFit.min_mac). Without it, the door-zone fit of typing D met every frequency
+#: with the second torsion paired at MAC 0.33 to a mode unlike a torsion.
+TYPED_MIN_MAC = 0.8
 
 
 def _calibrate_box_targets(args, settings):
@@ -264,7 +268,8 @@ def _calibrate_box_targets(args, settings):
     g = Geometry()
     typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
     return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
-                         progress=_progress(args), min_carbody_share=TYPED_MIN_CARBODY_SHARE)
+                         progress=_progress(args), min_carbody_share=TYPED_MIN_CARBODY_SHARE,
+                         min_mac=TYPED_MIN_MAC)
 
 
 # --------------------------------------------------------------------------- validate

@@ -133,6 +133,31 @@ def test_a_target_pairs_only_with_carbody_modes_when_asked(model):
     assert fit.pair(p[None, :]).index[0, 0] == seen  # the reduced pairing skips it too
 
 
+def test_a_typed_target_counts_only_when_its_pairing_is_sound(model):
+    """With ``min_mac`` a target paired to a mode unlike its pattern (MAC below the floor)
+    adds 10 % per 0.01 of shortfall, and one whose partner a better-matching target already
+    has adds 100 %; sound pairings keep RTRI eq. 3, and the full check says which are sound."""
+    S = sensor_operator(model, SENSOR_GRID)
+    targets = tuple(ModeTarget(t, f, template(t, SENSOR_GRID, 24.5, 3.38))
+                    for t, f in (("vertical_bending_1", 10.0), ("torsion_1", 12.0)))
+    plain, strict = BoxFit(model, S, targets), BoxFit(model, S, targets, min_mac=0.8)
+    f = np.array([[10.1, 11.4], [10.1, 11.4], [10.1, 11.4], [10.1, 11.4]])
+    mac = np.array([[0.95, 0.90], [0.95, 0.50], [0.95, 0.79], [0.95, 0.90]])
+    index = np.array([[7, 9], [7, 9], [7, 9], [7, 7]])  # the last row: both targets on mode 7
+    assert plain.errors_pct(f, mac, index) == pytest.approx(np.tile([1.0, 5.0], (4, 1)))
+    e = strict.errors_pct(f, mac, index)
+    assert e[0] == pytest.approx([1.0, 5.0])  # sound: the frequency errors
+    assert e[1, 1] == pytest.approx(5 + 300) and e[2, 1] == pytest.approx(5 + 10)  # MAC 0.5, 0.79 < 0.8
+    assert e[3] == pytest.approx([1.0, 105.0])  # mode 7 goes to the better match
+    p = np.ones(len(model.names))
+    strict.rebuild(p)
+    check = strict.full_check(p)
+    unsound = check["mac"] < 0.8
+    assert np.array_equal(check["sound"], ~unsound)  # (no shared partner between these two types)
+    assert check["max_error_pct"] == pytest.approx(np.max(np.abs(check["error_pct"])
+                                                          + 1000 * np.maximum(0.8 - check["mac"], 0)))
+
+
 def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     root = shaker[0]
     assert main(["calibrate", str(root), "--model", "box", "--method", "ce", "--out", str(tmp_path / "c.json")]) == 2

@@ -11,6 +11,10 @@ is compared with the span of the model modes in its band (the MAC of the shape w
 projection on that span) and takes the frequency of the member contributing most to the
 projection, whenever that beats the best single mode. Without a band, the seed's pairing.
 
+A target given by mode type only (an idealised floor pattern, :mod:`.mode_types`) pairs
+with *some* mode however unlike it; ``BoxFit(min_mac=...)`` makes a pairing count only when
+sound (MAC at least that, its partner no other target's), else it is penalised.
+
 A swarm is evaluated in one batched reduced eigen-solve (:mod:`.reduced`), on a basis that
 :meth:`BoxFit.adapt` rebuilds around the swarm's best as the search narrows; the answer
 is always re-solved on the full model (:meth:`BoxFit.full_check`), so the reduced basis's
@@ -22,6 +26,7 @@ reduced coordinates, modes labelled by their measured partner.
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +34,13 @@ import scipy.sparse as sp
 
 from .assembly import BoxModel
 from .reduced import ReducedFamily, full_modes
+
+
+#: BoxFit.min_mac: what a pairing below the MAC floor adds to its error [%] per unit of
+#: shortfall (10 % per 0.01: continuous, so the swarm can climb to sound pairings), and what
+#: a target adds whose partner a target of larger MAC has (one mode cannot be two)
+MAC_SHORTFALL_PCT = 1000.0
+SHARED_PARTNER_PCT = 100.0
 
 
 @dataclass(frozen=True)
@@ -145,13 +157,16 @@ class Pairing:
 
 class BoxFit:
     def __init__(self, model: BoxModel, sensors: np.ndarray, targets: tuple[ModeTarget, ...], *,
-                 n_modes: int = 30, basis_size: int = 60, derivatives: int = 20, min_carbody_share: float = 0.0):
+                 n_modes: int = 30, basis_size: int = 60, derivatives: int = 20, min_carbody_share: float = 0.0,
+                 min_mac: float = 0.0):
         """``sensors`` (n_sensors, n_dof): the operator from DOF to what each sensor reads
         (e.g. floor vertical displacement). ``min_carbody_share``: a model mode is paired
         only if at least this share of its kinetic energy is in the carbody (panels and the
         masses on them); a bogie mode seen faintly through the suspension has the floor
         pattern of its carbody reaction, which MAC, blind to amplitude, can mistake for an
-        elastic mode."""
+        elastic mode. ``min_mac``: a pairing is sound only if its MAC reaches this and no
+        other target with a larger MAC has the same partner; an unsound one is penalised in
+        RTRI eq. 3 (:meth:`errors_pct`)."""
         self.model = model
         self.sensors = np.asarray(sensors, float)
         self.targets = tuple(targets)
@@ -164,18 +179,23 @@ class BoxFit:
         self.centre: np.ndarray | None = None
         self.rebuilds = 0
         self.min_carbody_share = float(min_carbody_share)
+        self.min_mac = float(min_mac)
         self._M_carbody = carbody_mass(model) if self.min_carbody_share > 0 else None
 
     # -- reduced basis ----------------------------------------------------------------
     def rebuild(self, p) -> None:
         p = np.asarray(p, float)
-        self.reduced = ReducedFamily.build(self.model, p[None, :],
-                                           modes_per_sample=self.n_modes, size=self.basis_size,
-                                           derivatives=self.derivatives)
-        self._S = self.sensors @ self.reduced.V
+        self.use(ReducedFamily.build(self.model, p[None, :], modes_per_sample=self.n_modes, size=self.basis_size,
+                                     derivatives=self.derivatives), p)
+
+    def use(self, family: ReducedFamily, centre) -> None:
+        """Evaluate on ``family`` from now on (e.g. one basis for a whole parameter box);
+        ``centre``: where :meth:`adapt` measures moves from."""
+        self.reduced = family
+        self._S = self.sensors @ family.V
         if self._M_carbody is not None:
-            self._Mc = self.reduced.V.T @ (self._M_carbody @ self.reduced.V)
-        self.centre = p.copy()
+            self._Mc = family.V.T @ (self._M_carbody @ family.V)
+        self.centre = np.asarray(centre, float).copy()
         self.rebuilds += 1
 
     def adapt(self, iteration: int, best, *, force: bool = False, every: int = 25, distance: float = 0.02) -> bool:
@@ -211,10 +231,27 @@ class BoxFit:
             mac = np.where(eligible[:, None, :], mac, 0.0)
         return band_pairing(f, phi, self.shapes, self.f_target, self.band, mac, eligible)
 
+    def errors_pct(self, frequency_hz, mac, index) -> np.ndarray:
+        """Each target's |error| [%] (N, T) from its partners' frequencies, MACs and mode
+        indices (N, T). With ``min_mac`` a pairing below it adds MAC_SHORTFALL_PCT per unit
+        of shortfall, and a target whose partner a target of larger MAC also has adds
+        SHARED_PARTNER_PCT, so the swarm is led to sound pairings; :meth:`full_check` says
+        which pairings are sound."""
+        err = 100 * np.abs(np.asarray(frequency_hz) / self.f_target - 1)
+        if self.min_mac <= 0:
+            return err
+        mac, index = np.atleast_2d(mac), np.atleast_2d(index)
+        shared = np.zeros(mac.shape, bool)
+        for i, j in itertools.combinations(range(mac.shape[1]), 2):  # one model mode cannot be two measured
+            same = index[:, i] == index[:, j]
+            shared[:, i] |= same & (mac[:, i] <= mac[:, j])
+            shared[:, j] |= same & (mac[:, j] < mac[:, i])
+        return err + MAC_SHORTFALL_PCT * np.maximum(self.min_mac - mac, 0.0) + SHARED_PARTNER_PCT * shared
+
     def evaluation(self, P) -> np.ndarray:
-        """RTRI eq. 3 [%] for each parameter row."""
+        """RTRI eq. 3 [%] for each parameter row (with ``min_mac``, unsound pairings penalised)."""
         pr = self.pair(P)
-        return 100 * np.max(np.abs(pr.frequency_hz / self.f_target - 1), axis=1)
+        return np.max(self.errors_pct(pr.frequency_hz, pr.mac, pr.index), axis=1)
 
     __call__ = evaluation
 
@@ -227,8 +264,9 @@ class BoxFit:
         idx, best = idx[0], best[0]
         reduced = self.pair(p[None, :])
         error_pct = 100 * (f[idx] / self.f_target - 1)
+        scored = self.errors_pct(f[idx][None], best[None], idx[None])[0]
         return {"frequency_hz": f[idx], "mac": best, "index": idx, "error_pct": error_pct,
-                "max_error_pct": float(np.max(np.abs(error_pct))),
+                "max_error_pct": float(np.max(scored)), "sound": scored == np.abs(error_pct),
                 "reduced_frequency_hz": reduced.frequency_hz[0],
                 "reduced_vs_full_pct": 100 * (reduced.frequency_hz[0] / f[idx] - 1)}
 
