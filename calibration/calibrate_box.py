@@ -69,10 +69,12 @@ def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
                   sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0,
-                  min_mac: float = 0.0) -> BoxCalibration:
+                  min_mac: float = 0.0, log_factors: bool = False) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability;
-    ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`)."""
+    ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`);
+    ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
+    16 or more, where a linear swarm crowds the upper end)."""
     model = assemble(shinkansen_vehicle()) if model is None else model
     names = tuple(p.name for p in search)
     if names != model.names:
@@ -83,15 +85,23 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     centre = np.array([p.mean for p in search])
     t0 = time.perf_counter()
     fit.rebuild(centre)
-    res = particle_swarm(fit, search, np.random.default_rng(seed), settings=settings, adapt=fit.adapt)
+    rng = np.random.default_rng(seed)
+    if log_factors:
+        space = tuple(SearchParameter(q.name, np.log(q.mean), 0.3, np.log(q.low), np.log(q.high), 0.01) for q in search)
+        res = particle_swarm(lambda Q: fit(np.exp(np.atleast_2d(Q))), space, rng, settings=settings,
+                             adapt=lambda it, best, force=False: fit.adapt(it, np.exp(best), force=force))
+        best = np.exp(res.best)
+    else:
+        res = particle_swarm(fit, search, rng, settings=settings, adapt=fit.adapt)
+        best = res.best
     wall = time.perf_counter() - t0
-    check = fit.full_check(res.best)
+    check = fit.full_check(best)
     pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": res.evaluations,
            "wall_s": wall, "evaluations_per_s": res.evaluations / wall, "basis_rebuilds": fit.rebuilds,
            "best_reduced_pct": res.best_value, "best_full_pct": check["max_error_pct"],
            "reached_stop": res.reached_target, "stop_pct": settings.target,
            "history_pct": [float(v) for v in res.history]}
-    p = res.best
+    p = best
     refinement = None
     if refine:
         if progress:
