@@ -29,8 +29,15 @@ linearised with the full model's exact eigen-derivatives (d f / d log p_i =
 p_i x^T K_i x / (8 pi^2 f)) within +-5 % of the factors, then steps of halving length
 towards it, each re-solved on the full model with its MACs.
 
+``--describe`` says what each partner mode does above the floor (the floor patterns name the
+types, but a pattern can come from more than one motion): at 12 sections along the car, the
+largest of each section quantity, relative to the largest of all: floor and roof tilt and the
+roof's lateral motion relative to the floor's (as rotations times the 1.5 m half-width; all
+three equal for a rigid section's twist), the section's mean lateral and vertical motion,
+the floor's and the roof's centre against their edges, and the roof against the floor.
+
     python scripts/check_figure5_credible.py [--particles 200] [--iterations 200] [--seed 0] [--targets TOML]
-        [--orthotropic] [--side-end-zone 3.5] [--probe]
+        [--orthotropic] [--side-end-zone 3.5] [--probe] [--describe]
 """
 from __future__ import annotations
 
@@ -43,6 +50,7 @@ import numpy as np
 
 from calibration.calibrate import read_targets
 from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC
+from calibration.data.campaign import Sensor
 from calibration.models.box import assemble, shinkansen_vehicle
 from calibration.models.box.assembly import StiffnessParameter
 from calibration.models.box.fit import BoxFit, refine_box, sensor_operator
@@ -112,6 +120,27 @@ def probe(fit: BoxFit, p, low, high, trust: float = 0.05, steps: int = 8) -> Non
               f"frequencies {np.max(np.abs(step['error_pct'])):.3f} %, MAC {' '.join(f'{v:.3f}' for v in step['mac'])}")
 
 
+def describe(fit: BoxFit, p, g: Geometry = Geometry(), half: float = 1.5) -> None:
+    """What each target's partner mode does above the floor (``--describe``)."""
+    check = fit.full_check(p)
+    _, X = full_modes(fit.model, p, fit.n_modes)
+    H = g.roof_z - g.floor_z
+    points = (("floor", "z", half, g.floor_z), ("floor", "z", -half, g.floor_z), ("roof", "z", half, g.roof_z),
+              ("roof", "z", -half, g.roof_z), ("floor", "y", 0.0, g.floor_z), ("roof", "y", 0.0, g.roof_z),
+              ("floor", "z", 0.0, g.floor_z), ("roof", "z", 0.0, g.roof_z))
+    xs = np.linspace(-0.45 * g.length, 0.45 * g.length, 12)
+    O = sensor_operator(fit.model, [Sensor("probe", "displacement", "m", body, d, (float(x), y, z))
+                                    for x in xs for body, d, y, z in points])
+    print("partner modes above the floor (largest over 12 sections, relative to the largest quantity):")
+    for t, k, fk in zip(fit.targets, check["index"], check["frequency_hz"]):
+        fz, fzm, rz, rzm, fy, ry, fc, rc = (O @ X[:, k]).reshape(len(xs), len(points)).T
+        q = {"floor tilt": (fz - fzm) / 2, "roof tilt": (rz - rzm) / 2, "roof sway": -(ry - fy) * half / H,
+             "lateral": (fy + ry) / 2, "vertical": (fc + rc) / 2, "floor centre-edge": fc - (fz + fzm) / 2,
+             "roof centre-edge": rc - (rz + rzm) / 2, "roof-floor": rc - fc}
+        top = max(np.abs(v).max() for v in q.values())
+        print(f"  {t.label:20s} {fk:6.2f} Hz: " + ", ".join(f"{n} {np.abs(v).max() / top:.2f}" for n, v in q.items()))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--particles", type=int, default=200)
@@ -125,6 +154,7 @@ def main() -> int:
     ap.add_argument("--min-mac", type=float, default=TYPED_MIN_MAC,
                     help="a pairing counts only with MAC >= this (as the CLI; 0: every pairing, as before 2026-11-25)")
     ap.add_argument("--probe", action="store_true", help="at the answer: what holds the error there")
+    ap.add_argument("--describe", action="store_true", help="what the partner modes do above the floor")
     ap.add_argument("--side-end-zone", type=float, default=0.0, metavar="METRES",
                     help="a factor more: the side walls' in-plane shear over this length at each end (doors)")
     args = ap.parse_args()
@@ -161,6 +191,8 @@ def main() -> int:
     for (label, f), fm, e, mac, ok in zip(targets.items(), check["frequency_hz"], check["error_pct"], check["mac"],
                                           check["sound"]):
         print(f"  {label:20s} {f:6.2f} Hz -> {fm:7.3f} Hz ({e:+.2f} %), MAC {mac:.2f}{'' if ok else ' UNSOUND'}")
+    if args.describe:
+        describe(fit, p)
     if args.probe:
         probe(fit, p, low, high)
     return 0 if check["max_error_pct"] <= 0.5 else 1
