@@ -247,7 +247,7 @@ TYPED_MIN_CARBODY_SHARE = 0.5
 #: ... and counts only when sound: MAC with the pattern >= this, its partner no other
 #: target's (BoxFit.min_mac). Without it, the door-zone fit of typing D met every frequency
 #: with the second torsion paired at MAC 0.33 to a mode unlike a torsion. The swarm then
-#: moves in log factors: in the linear 0.25-4 box it collapsed onto the box's corners
+#: moves in log factors: in the linear 0.25-4 box it collapsed onto the box's limits
 #: (typing D, 1000 x 1000: 326 %; in log factors, 400 x 300: 2.9 %, every pairing sound).
 TYPED_MIN_MAC = 0.8
 
