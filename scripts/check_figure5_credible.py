@@ -97,25 +97,33 @@ ORTHOTROPIC = tuple(
 ) + tuple(c for c in CREDIBLE if c[0].kind == "joint" or c[0].group == "end")  # end walls, joints as before
 
 
-def probe(fit: BoxFit, p, low, high, trust: float = 0.05, steps: int = 8) -> None:
-    """What holds the full-model error at ``p`` (see the module docstring, ``--probe``)."""
+def linearised_minimax(ratio, G, q, lo, hi, trust: float):
+    """The step d in log factors minimising max |ratio + G d - 1| (``ratio``: model over
+    target frequency (m,), ``G``: its derivatives by log factor (m, n)) within +-``trust``
+    of ``q`` and inside [``lo``, ``hi``]: (d, the predicted max |.|), or None if the LP fails."""
     from scipy.optimize import linprog
 
+    m, n = G.shape
+    A = np.vstack([np.hstack([G, -np.ones((m, 1))]), np.hstack([-G, -np.ones((m, 1))])])
+    b = np.concatenate([1 - ratio, ratio - 1])
+    r = linprog(np.r_[np.zeros(n), 1.0], A_ub=A, b_ub=b, method="highs",
+                bounds=[(max(-trust, a - x), min(trust, c - x)) for x, a, c in zip(q, lo, hi)] + [(0, None)])
+    return (r.x[:n], r.fun) if r.success else None
+
+
+def probe(fit: BoxFit, p, low, high, trust: float = 0.05, steps: int = 8) -> None:
+    """What holds the full-model error at ``p`` (see the module docstring, ``--probe``)."""
     check = fit.full_check(p)
     f, X = full_modes(fit.model, p, fit.n_modes)
     fk, Xk = f[check["index"]], X[:, check["index"]]
     J = np.array([[p[i] * (x @ (fit.model.K_units[n] @ x)) for i, n in enumerate(fit.names)] for x in Xk.T])
     G = J / (8 * np.pi**2 * fk[:, None]) / fit.f_target[:, None]  # d (f / f_target) / d log p
-    m, n = G.shape
-    A = np.vstack([np.hstack([G, -np.ones((m, 1))]), np.hstack([-G, -np.ones((m, 1))])])
-    b = np.concatenate([1 - fk / fit.f_target, fk / fit.f_target - 1])
-    q, lo, hi = np.log(p), np.log(low), np.log(high)
-    r = linprog(np.r_[np.zeros(n), 1.0], A_ub=A, b_ub=b, method="highs",
-                bounds=[(max(-trust, a - x), min(trust, c - x)) for x, a, c in zip(q, lo, hi)] + [(0, None)])
-    print(f"probe: the frequencies linearised within +-{100 * trust:g} % of the factors reach {100 * r.fun:.3f} %; "
+    q = np.log(p)
+    d, t = linearised_minimax(fk / fit.f_target, G, q, np.log(low), np.log(high), trust)
+    print(f"probe: the frequencies linearised within +-{100 * trust:g} % of the factors reach {100 * t:.3f} %; "
           f"steps towards that, on the full model:")
     for k in range(steps):
-        step = fit.full_check(np.exp(q + r.x[:n] / 2**k))
+        step = fit.full_check(np.exp(q + d / 2**k))
         print(f"  {100 / 2**k:7.3f} % of the step: max error {step['max_error_pct']:8.3f} % (penalties included), "
               f"frequencies {np.max(np.abs(step['error_pct'])):.3f} %, MAC {' '.join(f'{v:.3f}' for v in step['mac'])}")
 

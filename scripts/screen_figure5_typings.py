@@ -33,10 +33,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linprog
 
 sys.path.insert(0, str(Path(__file__).parent))
-from check_figure5_credible import CREDIBLE, TARGETS  # noqa: E402
+from check_figure5_credible import CREDIBLE, TARGETS, linearised_minimax  # noqa: E402
 
 from calibration.calibrate import read_targets  # noqa: E402
 from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC  # noqa: E402
@@ -78,7 +77,7 @@ def main() -> int:
     g = Geometry()
     fit = BoxFit(model, sensor_operator(model, SENSOR_GRID),
                  typed_targets({t: 10.0 for t in types}, SENSOR_GRID, g.length, g.width),
-                 min_carbody_share=TYPED_MIN_CARBODY_SHARE)
+                 min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.mac)
     lo, hi = (np.log([r[i] for _, r in CREDIBLE]) for i in (0, 1))
 
     def draw(n):
@@ -102,31 +101,27 @@ def main() -> int:
         F[i:i + 200], MAC[i:i + 200] = pr.frequency_hz, pr.mac
 
     def partners(q, assign):
-        """Error [fraction], partner frequencies, d f / d log p, MACs, distinct partners."""
+        """Error [fraction], partner frequencies, d f / d log p, sound pairings."""
         p = np.exp(q)
         f, Y = family.modes(p[None], fit.n_modes)
         pr = fit.pair(p[None])
         idx = pr.index[0, assign]
         fk, y = f[0, idx], Y[0][:, idx]
         J = np.einsum("rk,irs,sk->ki", y, family.K_units, y) * p[None, :] / (8 * np.pi**2 * fk[:, None])
-        return np.max(np.abs(fk / measured - 1)), fk, J, pr.mac[0, assign], len(set(idx)) == len(idx)
+        return np.max(np.abs(fk / measured - 1)), fk, J, fit.sound(pr.mac[0, assign], idx).all(), pr.mac[0, assign]
 
     def minimax(assign, q):
-        e, fk, J, mac, distinct = partners(q, assign)
-        if mac.min() < args.mac or not distinct:
+        e, fk, J, sound, mac = partners(q, assign)
+        if not sound:
             e = np.inf
-        trust, n, m = 0.3, len(q), len(assign)
+        trust = 0.3
         for _ in range(args.iterations):
-            G = J / measured[:, None]  # minimise t: -t <= f/measured - 1 + G d <= t
-            A = np.vstack([np.hstack([G, -np.ones((m, 1))]), np.hstack([-G, -np.ones((m, 1))])])
-            b = np.concatenate([1 - fk / measured, fk / measured - 1])
-            bounds = [(max(-trust, a - x), min(trust, c - x)) for x, a, c in zip(q, lo, hi)] + [(0, None)]
-            r = linprog(np.r_[np.zeros(n), 1.0], A_ub=A, b_ub=b, bounds=bounds, method="highs")
-            if not r.success:
+            lp = linearised_minimax(fk / measured, J / measured[:, None], q, lo, hi, trust)
+            if lp is None:
                 break
-            step = partners(q + r.x[:n], assign)
-            if step[0] < e and step[3].min() >= args.mac and step[4]:
-                q, (e, fk, J, mac, _) = q + r.x[:n], step
+            step = partners(q + lp[0], assign)
+            if step[0] < e and step[3]:
+                q, (e, fk, J, _, mac) = q + lp[0], step
             else:
                 trust /= 2
                 if trust < 1e-3:

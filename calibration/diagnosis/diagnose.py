@@ -497,11 +497,13 @@ def _summary(cause, best, alarms, ev, hyps, s: DiagnoseSettings) -> list[str]:
         out.append("none: the baseline explains the data within the noise (no systematic residual, no extension gains)")
     out += alarms
     for h in hyps:
-        if h is not best and h["penalised_gain"] >= s.min_gain and h["losses"]:
+        if h is best or h["penalised_gain"] < s.min_gain:
+            continue
+        if h["losses"]:
             worse = ", ".join(f"{n} ({h['heldout_error'][n]['before']:.3g} -> {h['heldout_error'][n]['after']:.3g})"
                               for n in h["losses"])
             out.append(f"{h['name']} gains {h['gain']:.0%} on {h['best_channel']} but makes held-out {worse} worse")
-        if h is not best and h["penalised_gain"] >= s.min_gain and _leaves_systematic(h, s):
+        if _leaves_systematic(h, s):
             out.append(f"{h['name']} gains {h['gain']:.0%} on {h['best_channel']} but leaves "
                        f"{h['systematic_left']:.0%} of its systematic residual (error x input coherence): "
                        "it does not explain it")

@@ -231,22 +231,37 @@ class BoxFit:
             mac = np.where(eligible[:, None, :], mac, 0.0)
         return band_pairing(f, phi, self.shapes, self.f_target, self.band, mac, eligible)
 
+    @staticmethod
+    def shared(mac, index) -> np.ndarray:
+        """(N, T) True where a target's partner (``index``, (N, T)) is also the partner of a
+        target of larger ``mac`` (the first of equals keeps it): one model mode cannot be
+        two measured ones."""
+        mac, index = np.atleast_2d(mac), np.atleast_2d(index)
+        out = np.zeros(mac.shape, bool)
+        for i, j in itertools.combinations(range(mac.shape[1]), 2):
+            same = index[:, i] == index[:, j]
+            out[:, i] |= same & (mac[:, i] <= mac[:, j])
+            out[:, j] |= same & (mac[:, j] < mac[:, i])
+        return out
+
+    def sound(self, mac, index) -> np.ndarray:
+        """(N, T) True where a pairing counts as it is: MAC at least ``min_mac`` and its
+        partner its own (:meth:`shared`); without ``min_mac`` every pairing counts."""
+        mac = np.atleast_2d(mac)
+        if self.min_mac <= 0:
+            return np.ones(mac.shape, bool)
+        return (mac >= self.min_mac) & ~self.shared(mac, index)
+
     def errors_pct(self, frequency_hz, mac, index) -> np.ndarray:
         """Each target's |error| [%] (N, T) from its partners' frequencies, MACs and mode
         indices (N, T). With ``min_mac`` a pairing below it adds MAC_SHORTFALL_PCT per unit
         of shortfall, and a target whose partner a target of larger MAC also has adds
-        SHARED_PARTNER_PCT, so the swarm is led to sound pairings; :meth:`full_check` says
-        which pairings are sound."""
+        SHARED_PARTNER_PCT, so the swarm is led to sound pairings (:meth:`sound`)."""
         err = 100 * np.abs(np.asarray(frequency_hz) / self.f_target - 1)
         if self.min_mac <= 0:
             return err
-        mac, index = np.atleast_2d(mac), np.atleast_2d(index)
-        shared = np.zeros(mac.shape, bool)
-        for i, j in itertools.combinations(range(mac.shape[1]), 2):  # one model mode cannot be two measured
-            same = index[:, i] == index[:, j]
-            shared[:, i] |= same & (mac[:, i] <= mac[:, j])
-            shared[:, j] |= same & (mac[:, j] < mac[:, i])
-        return err + MAC_SHORTFALL_PCT * np.maximum(self.min_mac - mac, 0.0) + SHARED_PARTNER_PCT * shared
+        shortfall = np.maximum(self.min_mac - np.atleast_2d(mac), 0.0)
+        return err + MAC_SHORTFALL_PCT * shortfall + SHARED_PARTNER_PCT * self.shared(mac, index)
 
     def evaluation(self, P) -> np.ndarray:
         """RTRI eq. 3 [%] for each parameter row (with ``min_mac``, unsound pairings penalised)."""
@@ -266,7 +281,7 @@ class BoxFit:
         error_pct = 100 * (f[idx] / self.f_target - 1)
         scored = self.errors_pct(f[idx][None], best[None], idx[None])[0]
         return {"frequency_hz": f[idx], "mac": best, "index": idx, "error_pct": error_pct,
-                "max_error_pct": float(np.max(scored)), "sound": scored == np.abs(error_pct),
+                "max_error_pct": float(np.max(scored)), "sound": self.sound(best, idx)[0],
                 "reduced_frequency_hz": reduced.frequency_hz[0],
                 "reduced_vs_full_pct": 100 * (reduced.frequency_hz[0] / f[idx] - 1)}
 
