@@ -18,7 +18,7 @@ from .data.campaign import Campaign
 from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
 from .models.box import SEARCH_PARAMETERS, assemble, shinkansen_vehicle
-from .models.box.fit import BoxFit, ModeTarget, refine_box, sensor_operator
+from .models.box.fit import BoxFit, ModeTarget, polish_box, refine_box, sensor_operator
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -69,12 +69,14 @@ def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
                   sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0,
-                  min_mac: float = 0.0, log_factors: bool = False) -> BoxCalibration:
+                  min_mac: float = 0.0, log_factors: bool = False, polish_steps: int = 0) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability;
     ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`);
     ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
-    16 or more, where a linear swarm crowds the upper end)."""
+    16 or more, where a linear swarm crowds the upper end); ``polish_steps``: after the
+    refinement, up to this many sequential-LP steps on the full model that keep the MAC
+    floor (:func:`polish_box`; each costs 1 + 2 d full eigen-solves with a floor)."""
     model = assemble(shinkansen_vehicle()) if model is None else model
     names = tuple(p.name for p in search)
     if names != model.names:
@@ -110,6 +112,16 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
         refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
                       "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
         p = r.parameters
+        if polish_steps > 0:
+            if progress:
+                progress(f"polishing on the full model (sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
+            pol = polish_box(fit, p, low, high, steps=polish_steps, progress=progress)
+            refinement["polish"] = {"steps": pol.rounds, "kept": pol.statuses.count("kept"),
+                                    "start_max_error_pct": pol.start_max_error_pct,
+                                    "end_max_error_pct": pol.max_error_pct}
+            refinement["end_max_error_pct"] = pol.max_error_pct
+            refinement["improved"] = pol.max_error_pct < r.start_max_error_pct
+            p = pol.parameters
     final = check if refinement is None else fit.full_check(p)  # unrefined: the swarm's best, already checked
     fit.rebuild(p)  # exact eigenpairs at p for the sensitivities
     sigma = np.broadcast_to(np.asarray(sigma_f, float), (len(targets),))

@@ -250,6 +250,10 @@ TYPED_MIN_CARBODY_SHARE = 0.5
 #: moves in log factors: in the linear 0.25-4 box it collapsed onto the box's limits
 #: (typing D, 1000 x 1000: 326 %; in log factors, 400 x 300: 2.9 %, every pairing sound).
 TYPED_MIN_MAC = 0.8
+#: ... and near the answer that floor binds (a partner mixing with a close neighbour), so the
+#: CasADi refinement, which fits frequencies only, has its rounds refused; up to this many
+#: sequential-LP steps on the full model that keep the floor follow it (polish_box).
+TYPED_POLISH_STEPS = 20
 
 
 def _calibrate_box_targets(args, settings):
@@ -271,7 +275,8 @@ def _calibrate_box_targets(args, settings):
     typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
     return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
                          progress=_progress(args), min_carbody_share=TYPED_MIN_CARBODY_SHARE,
-                         min_mac=TYPED_MIN_MAC, log_factors=True)
+                         min_mac=TYPED_MIN_MAC, log_factors=True,
+                         polish_steps=TYPED_POLISH_STEPS if args.refine else 0)
 
 
 # --------------------------------------------------------------------------- validate

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from check_figure5_credible import CREDIBLE, TARGETS, linearised_minimax  # noqa: E402
+from check_figure5_credible import CREDIBLE, TARGETS  # noqa: E402
 
 from calibration.calibrate import read_targets  # noqa: E402
 from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC  # noqa: E402
@@ -43,6 +43,7 @@ from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402
 from calibration.models.box.reduced import ReducedFamily, full_modes  # noqa: E402
+from calibration.optimisers.minimax import linearised_minimax  # noqa: E402
 from calibration.models.box.shinkansen import Geometry  # noqa: E402
 from calibration.truth.excitation import SENSOR_GRID  # noqa: E402
 

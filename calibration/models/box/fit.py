@@ -272,6 +272,20 @@ class BoxFit:
 
     def full_check(self, p) -> dict:
         """The full model at p: paired frequencies and MACs, and the reduced basis's error."""
+        return self._full_check(p)[0]
+
+    def frequency_gradient(self, p) -> tuple[dict, np.ndarray]:
+        """:meth:`full_check` at p and the exact derivatives of the partners' frequencies
+        over the targets', d (f_k / f_target_k) / d log p_i = p_i x_k^T K_i x_k / (8 pi^2 f_k
+        f_target_k) (x_k M-normalised; K linear in p, M independent of it): (check, (T, d))."""
+        p = np.asarray(p, float)
+        check, f, X = self._full_check(p)
+        idx = check["index"]
+        J = np.array([[p[i] * (x @ (self.model.K_units[n] @ x)) for i, n in enumerate(self.names)]
+                      for x in X[:, idx].T])
+        return check, J / (8 * np.pi**2 * f[idx][:, None]) / self.f_target[:, None]
+
+    def _full_check(self, p):
         p = np.asarray(p, float)
         f, X = full_modes(self.model, p, self.n_modes)
         share = None if self._M_carbody is None else np.einsum("dm,dm->m", X, self._M_carbody @ X)[None]
@@ -283,7 +297,7 @@ class BoxFit:
         return {"frequency_hz": f[idx], "mac": best, "index": idx, "error_pct": error_pct,
                 "max_error_pct": float(np.max(scored)), "sound": self.sound(best, idx)[0],
                 "reduced_frequency_hz": reduced.frequency_hz[0],
-                "reduced_vs_full_pct": 100 * (reduced.frequency_hz[0] / f[idx] - 1)}
+                "reduced_vs_full_pct": 100 * (reduced.frequency_hz[0] / f[idx] - 1)}, f, X
 
     # -- the form the CasADi refinement takes -------------------------------------------------
     @property
@@ -355,3 +369,50 @@ def refine_box(fit: BoxFit, p_start, low, high, *, rounds: int = 10, trust: floa
         else:
             trust /= 2
     return BoxRefinement(p, start, best, len(statuses), tuple(statuses))
+
+
+def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float = 0.005, margin: float = 0.005,
+               h: float = 1e-3, progress=None) -> BoxRefinement:
+    """Sequential linear programming on the *full* model, after :func:`refine_box` where the
+    MAC floor binds: the CasADi NLP fits frequencies only, and near the answer the step it
+    wants can take a pairing's MAC under ``fit.min_mac`` (a partner mixing with a close
+    neighbour), so every such round is refused. Each step here linearises the partners'
+    frequencies (exact eigen-derivatives, :meth:`BoxFit.frequency_gradient`) and, with a MAC
+    floor, their MACs (central differences of +-``h`` in each log factor), and takes the
+    minimax step (:func:`calibration.optimisers.minimax.linearised_minimax`) within
+    +-``trust`` in log factors and the bounds that keeps every linearised MAC >= the floor +
+    ``margin`` (a MAC already below that: >= its value). A step is kept only if the full model's scored error falls; the region then
+    grows by half, else it halves. Never returns a worse full-model error than its start.
+    Each step costs 1 + 2 d full eigen-solves with the floor (d factors), 2 without."""
+    from ...optimisers.minimax import linearised_minimax
+
+    q, lo, hi = np.log(np.asarray(p_start, float)), np.log(np.asarray(low, float)), np.log(np.asarray(high, float))
+    check, G = fit.frequency_gradient(np.exp(q))
+    start = best = check["max_error_pct"]
+    statuses = []
+    for _ in range(steps):
+        if trust < 1e-5:
+            break
+        keep = None
+        if fit.min_mac > 0:
+            E = h * np.eye(q.size)
+            keep = (check["mac"], np.array([fit.full_check(np.exp(q + e))["mac"] - fit.full_check(np.exp(q - e))["mac"]
+                                            for e in E]).T / (2 * h), np.minimum(check["mac"], fit.min_mac + margin))
+        lp = linearised_minimax(check["frequency_hz"] / fit.f_target, G, q, lo, hi, trust, *(keep or ()))
+        if lp is None:
+            statuses.append("no step keeps the MAC floor")
+            trust /= 2
+            continue
+        trial, G_trial = fit.frequency_gradient(np.exp(q + lp[0]))
+        kept = trial["max_error_pct"] < best
+        statuses.append("kept" if kept else "not kept")
+        if progress:
+            progress(f"polish step {len(statuses)}: region +-{100 * trust:.3g} %, predicted {100 * lp[1]:.3f} %, "
+                     f"full model {trial['max_error_pct']:.3f} %, MAC {' '.join(f'{v:.3f}' for v in trial['mac'])}"
+                     f"{'' if kept else ' (not kept)'}")
+        if kept:
+            q, check, G, best = q + lp[0], trial, G_trial, trial["max_error_pct"]
+            trust *= 1.5
+        else:
+            trust /= 2
+    return BoxRefinement(np.exp(q), start, best, len(statuses), tuple(statuses))
