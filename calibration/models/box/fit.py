@@ -372,7 +372,7 @@ def refine_box(fit: BoxFit, p_start, low, high, *, rounds: int = 10, trust: floa
 
 
 def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float = 0.005, margin: float = 0.005,
-               h: float = 1e-3, progress=None) -> BoxRefinement:
+               h: float = 1e-3, min_trust: float = 1e-3, progress=None) -> BoxRefinement:
     """Sequential linear programming on the *full* model, after :func:`refine_box` where the
     MAC floor binds: the CasADi NLP fits frequencies only, and near the answer the step it
     wants can take a pairing's MAC under ``fit.min_mac`` (a partner mixing with a close
@@ -382,7 +382,8 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     minimax step (:func:`calibration.optimisers.minimax.linearised_minimax`) within
     +-``trust`` in log factors and the bounds that keeps every linearised MAC >= the floor +
     ``margin`` (a MAC already below that: >= its value). A step is kept only if the full model's scored error falls; the region then
-    grows by half, else it halves. Never returns a worse full-model error than its start.
+    grows by half, else it halves, and the polish stops when it falls under ``min_trust``
+    (0.1 % of the factors). Never returns a worse full-model error than its start.
     Each step costs 1 + 2 d full eigen-solves with the floor (d factors), 2 without."""
     from ...optimisers.minimax import linearised_minimax
 
@@ -391,7 +392,7 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     start = best = check["max_error_pct"]
     statuses = []
     for _ in range(steps):
-        if trust < 1e-5:
+        if trust < min_trust:
             break
         keep = None
         if fit.min_mac > 0:
