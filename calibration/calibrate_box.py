@@ -76,7 +76,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
     16 or more, where a linear swarm crowds the upper end); ``polish_steps``: after the
     refinement, up to this many sequential-LP steps on the full model that keep the MAC
-    floor (:func:`polish_box`; each costs 1 + 2 d full eigen-solves with a floor)."""
+    floor (:func:`polish_box`; each costs 1 + 2 d full eigen-solves with a floor, d factors)."""
     model = assemble(shinkansen_vehicle()) if model is None else model
     names = tuple(p.name for p in search)
     if names != model.names:

@@ -204,7 +204,8 @@ def main() -> int:
         fit, low, high = box_fit(credible)
         p = np.r_[p, np.ones(len(MORE_JOINTS))]
         fit.rebuild(p)
-        print(f"with the end-wall and floor-floor joints as factors (nominal): {fit.full_check(p)['max_error_pct']:.3f} %")
+        print(f"with the end-wall and floor-floor joints as factors (nominal): "
+              f"{fit.full_check(p)['max_error_pct']:.3f} %")
     if args.polish:
         pol = polish_box(fit, p, low, high, steps=args.polish, progress=lambda m: print(" ", m, flush=True))
         p = pol.parameters

@@ -17,8 +17,9 @@ import numpy as np
 def linearised_minimax(ratio, G, q, lo, hi, trust: float, keep=None, keep_grad=None, floor=0.0):
     """The step d in log factors minimising max |ratio + G d - 1| within +-``trust`` of ``q``
     and inside [``lo``, ``hi``]; with ``keep`` (k,) and its derivatives ``keep_grad`` (k, n),
-    also keeps keep + keep_grad d >= ``floor`` (a number or one per row). Returns (d, the predicted max |.|), or None if
-    the LP has no solution (e.g. the floor cannot be kept within the region)."""
+    also keeps keep + keep_grad d >= ``floor`` (a number or one per row). Returns (d, the
+    predicted max |.|), or None if the LP has no solution (e.g. the floor cannot be kept
+    within the region)."""
     from scipy.optimize import linprog
 
     G = np.asarray(G, float)

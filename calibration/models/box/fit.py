@@ -381,10 +381,11 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     floor, their MACs (central differences of +-``h`` in each log factor), and takes the
     minimax step (:func:`calibration.optimisers.minimax.linearised_minimax`) within
     +-``trust`` in log factors and the bounds that keeps every linearised MAC >= the floor +
-    ``margin`` (a MAC already below that: >= its value). A step is kept only if the full model's scored error falls; the region then
-    grows by half, else it halves, and the polish stops when it falls under ``min_trust``
-    (0.1 % of the factors). Never returns a worse full-model error than its start.
-    Each step costs 1 + 2 d full eigen-solves with the floor (d factors), 2 without."""
+    ``margin`` (a MAC already below that: >= its value). A step is kept only if the full
+    model's scored error falls; the region then grows by half, else it halves, and the polish
+    stops when it falls under ``min_trust`` (0.1 % of the factors). Never returns a worse
+    full-model error than its start. Each step costs 1 + 2 d full eigen-solves with the floor
+    (d factors), 1 without."""
     from ...optimisers.minimax import linearised_minimax
 
     q, lo, hi = np.log(np.asarray(p_start, float)), np.log(np.asarray(low, float)), np.log(np.asarray(high, float))
