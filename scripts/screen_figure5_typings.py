@@ -43,8 +43,8 @@ from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402
 from calibration.models.box.reduced import ReducedFamily, full_modes  # noqa: E402
-from calibration.optimisers.minimax import linearised_minimax  # noqa: E402
 from calibration.models.box.shinkansen import Geometry  # noqa: E402
+from calibration.optimisers.minimax import linearised_minimax  # noqa: E402
 from calibration.truth.excitation import SENSOR_GRID  # noqa: E402
 
 SECOND_OF = {"vertical_bending_2": "vertical_bending_1", "torsion_2": "torsion_1", "breathing_2": "breathing"}

@@ -29,7 +29,7 @@ def test_the_bounds_limit_the_step_as_the_region_does():
 
 
 def test_a_floor_on_another_quantity_is_kept_at_the_cost_of_the_fit():
-    # a MAC of 0.81 that falls by 1 per unit of the first log factor, floor 0.8: the first
+    # a MAC of 0.81 that moves with the first log factor (slope 1), floor 0.8: the first
     # factor may fall by at most 0.01, so the first target stays 1 % high
     keep, keep_grad = np.array([0.81]), np.array([[1.0, 0.0]])
     d, t = linearised_minimax(RATIO, G, Q, LO, HI, 0.05, keep, keep_grad, 0.8)
