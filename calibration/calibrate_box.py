@@ -66,6 +66,21 @@ def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
     return tuple(out)
 
 
+def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.Generator, settings: PSOSettings, *,
+              log_factors: bool = False):
+    """The seed's swarm on ``fit`` (RTRI eq. 3), its basis built at the search's centre and
+    adapted as the swarm narrows; with ``log_factors`` the particles move in the factors'
+    logarithms (the same centre, a spread of 0.3). Returns (the PSO result, the best factors)."""
+    fit.rebuild(np.array([q.mean for q in search]))
+    if not log_factors:
+        res = particle_swarm(fit, search, rng, settings=settings, adapt=fit.adapt)
+        return res, res.best
+    space = tuple(SearchParameter(q.name, np.log(q.mean), 0.3, np.log(q.low), np.log(q.high), 0.01) for q in search)
+    res = particle_swarm(lambda Q: fit(np.exp(np.atleast_2d(Q))), space, rng, settings=settings,
+                         adapt=lambda it, best, force=False: fit.adapt(it, np.exp(best), force=force))
+    return res, np.exp(res.best)
+
+
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
                   sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0,
@@ -84,18 +99,8 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share,
                  min_mac=min_mac)
     low, high = bounds(search)
-    centre = np.array([p.mean for p in search])
     t0 = time.perf_counter()
-    fit.rebuild(centre)
-    rng = np.random.default_rng(seed)
-    if log_factors:
-        space = tuple(SearchParameter(q.name, np.log(q.mean), 0.3, np.log(q.low), np.log(q.high), 0.01) for q in search)
-        res = particle_swarm(lambda Q: fit(np.exp(np.atleast_2d(Q))), space, rng, settings=settings,
-                             adapt=lambda it, best, force=False: fit.adapt(it, np.exp(best), force=force))
-        best = np.exp(res.best)
-    else:
-        res = particle_swarm(fit, search, rng, settings=settings, adapt=fit.adapt)
-        best = res.best
+    res, best = swarm_box(fit, search, np.random.default_rng(seed), settings, log_factors=log_factors)
     wall = time.perf_counter() - t0
     check = fit.full_check(best)
     pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": res.evaluations,

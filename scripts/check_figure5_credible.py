@@ -58,6 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.calibrate import read_targets
+from calibration.calibrate_box import swarm_box
 from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC
 from calibration.data.campaign import Sensor
 from calibration.models.box import assemble, shinkansen_vehicle
@@ -68,7 +69,7 @@ from calibration.models.box.reduced import full_modes
 from calibration.models.box.shinkansen import Geometry
 from calibration.optimisers.base import SearchParameter
 from calibration.optimisers.minimax import linearised_minimax
-from calibration.optimisers.pso import PSOSettings, particle_swarm
+from calibration.optimisers.pso import PSOSettings
 from calibration.truth.excitation import SENSOR_GRID
 
 TARGETS = Path(__file__).parent / "data" / "rtri_figure5_targets.toml"
@@ -184,15 +185,10 @@ def main() -> int:
         return (fit, *(np.array([r[i] for _, r in credible]) for i in (0, 1)))
 
     fit, low, high = box_fit(credible)
-    search = tuple(SearchParameter(q.name, 0.0, 0.3, lo, hi, 0.01)  # log factors
-                   for (q, _), lo, hi in zip(credible, np.log(low), np.log(high)))
+    search = tuple(SearchParameter(q.name, 1.0, 0.3, lo, hi, 0.01) for (q, _), lo, hi in zip(credible, low, high))
     t0 = time.perf_counter()
-    fit.rebuild(np.ones(len(credible)))
-    res = particle_swarm(lambda Q: fit.evaluation(np.exp(np.atleast_2d(Q))), search,
-                         np.random.default_rng(args.seed),
-                         settings=PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5),
-                         adapt=lambda it, best, force=False: fit.adapt(it, np.exp(best), force=force))
-    p = np.exp(res.best)
+    res, p = swarm_box(fit, search, np.random.default_rng(args.seed),
+                       PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5), log_factors=True)
     print(f"swarm {args.particles} x {res.iterations} on log factors: {fit.full_check(p)['max_error_pct']:.3f} % "
           f"(full model), {time.perf_counter() - t0:.0f} s", flush=True)
     ref = refine_box(fit, p, low, high, rounds=args.rounds)
