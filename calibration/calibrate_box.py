@@ -17,13 +17,14 @@ import numpy as np
 from .data.campaign import Campaign
 from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
-from .models.box import SEARCH_PARAMETERS, assemble, shinkansen_vehicle
+from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
+from .models.box.shinkansen import GROUPED_RANGE
 from .models.box.fit import BoxFit, ModeTarget, polish_box, refine_box, sensor_operator
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
 
-DEFAULT_RANGE = (0.5, 2.0)  # stiffness factors, when the campaign gives no priors
+DEFAULT_RANGE = GROUPED_RANGE  # stiffness factors, when the campaign gives no priors
 PAPER_STOP_PCT = 0.5  # RTRI seed: stop when the evaluation function reaches 0.5 %
 
 
@@ -37,11 +38,13 @@ class BoxCalibration:
     reduced_vs_full_pct: list
     identifiability: dict
     search: dict = field(default_factory=dict)
+    factor_set: str = "grouped"
 
     def to_json(self, ident: ShakerIdentification | None = None) -> dict:
         """The calibration file; with the identification it was fitted to, its modes too
         (the FRF comparison takes their damping)."""
-        out = {"model": "box", "method": "pso", "parameters": self.parameters, "fit": self.fit,
+        out = {"model": "box", "method": "pso", "factor_set": self.factor_set, "parameters": self.parameters,
+               "fit": self.fit,
                "max_error_pct": self.max_error_pct, "pso": self.pso, "refinement": self.refinement,
                "reduced_vs_full_pct_at_pso_optimum": self.reduced_vs_full_pct,
                "identifiability": self.identifiability, "search": self.search}
@@ -50,9 +53,12 @@ class BoxCalibration:
         return out
 
 
-def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
-    """Search parameters from campaign priors ({name: Prior}) or the default factor range."""
-    names = names or tuple(p.name for p in SEARCH_PARAMETERS)
+def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tuple[SearchParameter, ...]:
+    """Search parameters from campaign priors ({name: Prior}), else each factor's range in
+    ``factors`` (default: the grouped set; ``names``: other factors, in the default range)."""
+    factors = factor_set(None) if factors is None else factors
+    ranges = dict(zip(factors.names, factors.ranges))
+    names = names or factors.names
     priors = dict(priors or {})
     unknown = sorted(set(priors) - set(names))
     if unknown:
@@ -61,9 +67,33 @@ def box_search(priors=None, names=None) -> tuple[SearchParameter, ...]:
     out = []
     for n in names:
         pr = priors.get(n)
-        lo, hi, nom = (pr.low, pr.high, pr.nominal) if pr else (*DEFAULT_RANGE, 1.0)
+        lo, hi, nom = (pr.low, pr.high, pr.nominal) if pr else (*ranges.get(n, DEFAULT_RANGE), 1.0)
         out.append(SearchParameter(n, nom, 0.3 * nom, lo, hi, 0.01 * nom))
     return tuple(out)
+
+
+def calibrated_box_model(calibration: dict):
+    """The box model a calibration file describes and its factors: (model, {name: factor}),
+    the model assembled from the file's ``factor_set`` (files without one: grouped), every
+    factor it does not name nominal. InputError for an unknown set or factor, or a factor
+    that is not a positive number."""
+    try:
+        factors = factor_set(calibration.get("factor_set"))
+    except ValueError as e:
+        raise InputError(str(e), key="factor_set") from None
+    params = calibration.get("parameters", {})
+    if not isinstance(params, dict):
+        raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", key="parameters")
+    unknown = sorted(set(params) - set(factors.names))
+    if unknown:
+        raise InputError(f"box parameter(s) {', '.join(unknown)} unknown to the {factors.name} factor set; known: "
+                         f"{', '.join(factors.names)}", key="parameters")
+    bad = [n for n, x in params.items()
+           if isinstance(x, bool) or not (isinstance(x, (int, float)) and np.isfinite(x) and x > 0)]
+    if bad:
+        raise InputError(f"box parameter(s) {', '.join(bad)} must be positive numbers", key="parameters")
+    model = assemble(shinkansen_vehicle(parameters=factors.parameters))
+    return model, {n: float(params.get(n, 1.0)) for n in model.names}
 
 
 def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.Generator, settings: PSOSettings, *,
@@ -83,45 +113,68 @@ def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.G
 
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
-                  sigma_f=0.002, model=None, progress=None, min_carbody_share: float = 0.0,
-                  min_mac: float = 0.0, log_factors: bool = False, polish_steps: int = 0) -> BoxCalibration:
+                  sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
+                  min_carbody_share: float = 0.0, min_mac: float = 0.0, log_factors: bool = False,
+                  refine_rounds: int = 10, polish_steps: int = 0, order_change: int = 0) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
+    ``search``: one entry per factor of ``factors`` (a named set, default grouped) or, for a
+    ``model`` assembled elsewhere, of that model (its file then records the set "custom");
     ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability;
     ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`);
     ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
-    16 or more, where a linear swarm crowds the upper end); ``polish_steps``: after the
-    refinement, up to this many sequential-LP steps on the full model that keep the MAC
-    floor (:func:`polish_box`; each costs 1 + 2 d full eigen-solves with a floor, d factors)."""
-    model = assemble(shinkansen_vehicle()) if model is None else model
+    16 or more, where a linear swarm crowds the upper end); ``refine_rounds``: of the CasADi
+    refinement; ``polish_steps``: after the refinement, up to this many sequential-LP steps
+    on the full model that keep the MAC floor (:func:`polish_box`; each costs 1 + 2 d full
+    eigen-solves with a floor, d factors). A set's ``polish_only`` factors stay nominal in the
+    swarm and the refinement (a model without them) and join the polish (a model with them);
+    without a polish they stay nominal. ``order_change``: added to every panel order of a
+    set's model (negative: a coarse, fast model for tests)."""
+    if model is not None and factors is not None:
+        raise ValueError("give a model or a factor set, not both")
+    set_name = "custom" if model is not None else (factors or factor_set(None)).name
+    factors = factor_set(None) if factors is None and model is None else factors
+    if model is None:
+        model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.swarm_parameters))
     names = tuple(p.name for p in search)
-    if names != model.names:
-        raise InputError(f"the search must name the model's parameters {model.names}, got {names}", key="priors")
+    expected = model.names if factors is None else factors.names
+    if names != expected:
+        raise InputError(f"the search must name the model's parameters {expected}, got {names}", key="priors")
+    staged = len(names) - len(model.names)  # factors joining only in the polish (without one: nominal)
     fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share,
                  min_mac=min_mac)
     low, high = bounds(search)
     t0 = time.perf_counter()
-    res, best = swarm_box(fit, search, np.random.default_rng(seed), settings, log_factors=log_factors)
+    res, best = swarm_box(fit, search[:len(model.names)], np.random.default_rng(seed), settings,
+                          log_factors=log_factors)
     wall = time.perf_counter() - t0
     check = fit.full_check(best)
     pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": res.evaluations,
            "wall_s": wall, "evaluations_per_s": res.evaluations / wall, "basis_rebuilds": fit.rebuilds,
            "best_reduced_pct": res.best_value, "best_full_pct": check["max_error_pct"],
            "reached_stop": res.reached_target, "stop_pct": settings.target,
-           "history_pct": [float(v) for v in res.history]}
+           "factors": list(model.names), "history_pct": [float(v) for v in res.history]}
     p = best
     refinement = None
     if refine:
         if progress:
             progress("refining on the reduced model in rounds, checked on the full model (CasADi/IPOPT)")
-        r = refine_box(fit, p, low, high)
+        r = refine_box(fit, p, low[:p.size], high[:p.size], rounds=refine_rounds)
         refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
                       "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
         p = r.parameters
         if polish_steps > 0:
+            if staged:  # the set's remaining factors join, nominal: the same stiffness, so the same error
+                model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
+                fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share,
+                             min_mac=min_mac)
+                p = np.r_[p, np.ones(staged)]
+                fit.rebuild(p)
             if progress:
-                progress(f"polishing on the full model (sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
+                progress(f"polishing {len(names)} factors on the full model "
+                         f"(sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
             pol = polish_box(fit, p, low, high, steps=polish_steps, progress=progress)
             refinement["polish"] = {"steps": pol.rounds, "kept": pol.statuses.count("kept"),
+                                    "statuses": list(pol.statuses), "factors": list(names),
                                     "start_max_error_pct": pol.start_max_error_pct,
                                     "end_max_error_pct": pol.max_error_pct}
             refinement["end_max_error_pct"] = pol.max_error_pct
@@ -130,14 +183,16 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     final = check if refinement is None else fit.full_check(p)  # unrefined: the swarm's best, already checked
     fit.rebuild(p)  # exact eigenpairs at p for the sensitivities
     sigma = np.broadcast_to(np.asarray(sigma_f, float), (len(targets),))
-    ident = identifiability(fit, p, tuple(t.label for t in targets), sigma_f=sigma, low=low, high=high).to_json()
+    ident = identifiability(fit, p, tuple(t.label for t in targets), sigma_f=sigma, low=low[:p.size],
+                            high=high[:p.size]).to_json()
     rows = [{"label": t.label, "measured_hz": t.frequency_hz, "model_hz": float(final["frequency_hz"][i]),
              "error_pct": float(final["error_pct"][i]), "mac": float(final["mac"][i]),
              "sound": bool(final["sound"][i]),
              "model_mode": int(final["index"][i]) + 1} for i, t in enumerate(targets)]
+    p = np.r_[p, np.ones(len(names) - p.size)]  # factors never freed: nominal
     return BoxCalibration(dict(zip(names, map(float, p))), rows, float(final["max_error_pct"]), pso, refinement,
                           [float(x) for x in check["reduced_vs_full_pct"]], ident,
-                          {p.name: [p.low, p.high] for p in search})
+                          {q.name: [q.low, q.high] for q in search}, set_name)
 
 
 def targets_from_identification(ident: ShakerIdentification, *, band: bool = False) -> tuple[ModeTarget, ...]:

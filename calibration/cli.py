@@ -224,6 +224,9 @@ def _calibrate_box(args) -> int:
         raise InputError("need --particles >= 2, --iterations >= 1 and --stop-pct >= 0", key="--particles")
     settings = PSOSettings(particles=args.particles, iterations=args.iterations, target=args.stop_pct)
     if args.campaign is not None:
+        if args.factors not in (None, "grouped"):
+            raise InputError(f"a campaign is calibrated over the grouped factor set (its priors name them), not "
+                             f"{args.factors!r}", key="--factors")
         result, ident = calibrate_box_campaign(open_campaign(args.campaign), settings=settings, seed=args.seed,
                                                refine=args.refine, progress=_progress(args))
         out = result.to_json(ident)
@@ -232,7 +235,8 @@ def _calibrate_box(args) -> int:
         out = result.to_json()
     write_json_atomic(args.out, out)
     pso = result.pso
-    print(f"pso {pso['particles']} x {pso['iterations']} iterations ({pso['evaluations_per_s']:.0f} evaluations/s): "
+    print(f"pso {pso['particles']} x {pso['iterations']} iterations over {len(pso['factors'])} of the "
+          f"{len(result.parameters)} {result.factor_set} factors ({pso['evaluations_per_s']:.0f} evaluations/s): "
           f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
           f"{result.max_error_pct:.2g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}; "
           f"{result.identifiability['summary']}; wrote {args.out}")
@@ -251,11 +255,13 @@ TYPED_MIN_CARBODY_SHARE = 0.5
 #: (typing D, 1000 x 1000: 326 %; in log factors, 400 x 300: 2.9 %, every pairing sound).
 TYPED_MIN_MAC = 0.8
 #: ... and near the answer that floor binds (a partner mixing with a close neighbour), so the
-#: CasADi refinement, which fits frequencies only, has its rounds refused; up to this many
-#: sequential-LP steps on the full model that keep the floor follow it (polish_box). On typing D
-#: with the CLI's 12 factors it found no such step (2.89 % stays, 13 min 51 s in all with the
-#: 400 x 300 swarm); with the 18 factors of scripts/check_figure5_credible.py it does.
-TYPED_POLISH_STEPS = 20
+#: CasADi refinement (TYPED_REFINE_ROUNDS), which fits frequencies only, has its rounds
+#: refused; up to this many sequential-LP steps on the full model that keep the floor follow
+#: it (polish_box), over the whole factor set: the credible set's end-wall and floor-floor
+#: joints join here. With the grouped 12 factors the polish found no such step on typing D
+#: (2.89 % stays, 13 min 51 s with the 400 x 300 swarm).
+TYPED_POLISH_STEPS = 30
+TYPED_REFINE_ROUNDS = 20
 
 
 def _calibrate_box_targets(args, settings):
@@ -264,20 +270,23 @@ def _calibrate_box_targets(args, settings):
     from .calibrate import read_priors, read_targets
     from .calibrate_box import box_search, calibrate_box
     from .data.campaign import Prior
-    from .models.box import SEARCH_PARAMETERS
+    from .models.box import factor_set
     from .models.box.mode_types import MODE_TYPES, typed_targets
     from .models.box.shinkansen import Geometry
     from .truth.excitation import SENSOR_GRID
 
+    try:
+        factors = factor_set(args.factors or "credible")
+    except ValueError as e:
+        raise InputError(str(e), key="--factors") from None
     targets = read_targets(args.targets, labels=tuple(MODE_TYPES), model="the box model (mode types)")
-    names = tuple(q.name for q in SEARCH_PARAMETERS)
-    given = read_priors(args.priors, searchable=names) if args.priors else ()
-    search = box_search({q.name: Prior(q.mean, q.low, q.high) for q in given})
+    given = read_priors(args.priors, searchable=factors.names) if args.priors else ()
+    search = box_search({q.name: Prior(q.mean, q.low, q.high) for q in given}, factors=factors)
     g = Geometry()
     typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
     return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
-                         progress=_progress(args), min_carbody_share=TYPED_MIN_CARBODY_SHARE,
-                         min_mac=TYPED_MIN_MAC, log_factors=True,
+                         factors=factors, progress=_progress(args), min_carbody_share=TYPED_MIN_CARBODY_SHARE,
+                         min_mac=TYPED_MIN_MAC, log_factors=True, refine_rounds=TYPED_REFINE_ROUNDS,
                          polish_steps=TYPED_POLISH_STEPS if args.refine else 0)
 
 
@@ -514,6 +523,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--iterations", type=int, default=1000, help="box model: iteration cap (RTRI seed: 1000)")
     s.add_argument("--stop-pct", type=float, default=0.5, help="box model: stop at this evaluation value [%%]")
     s.add_argument("--refine", action="store_true", help="constrained refinement (CasADi/IPOPT) after the search")
+    s.add_argument("--factors", default=None, metavar="SET",
+                   help="box model: the factor set searched, grouped or credible (default: credible with "
+                        "--targets, grouped with a campaign, the truth simulator's factors)")
     s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("--out", required=True)
     s.add_argument("--quiet", action="store_true")

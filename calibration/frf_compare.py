@@ -44,6 +44,7 @@ class FRFComparison:
 
 
 def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentification | None = None) -> FRFComparison:
+    from .calibrate_box import calibrated_box_model
     from .truth.excitation import truth_modes
 
     ident = identify_excitation(campaign) if ident is None else ident
@@ -51,11 +52,12 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
     exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
     try:
-        params = {k: float(v) for k, v in calibration["parameters"].items()}
+        calibration["parameters"].items()
         fit = calibration["fit"]
-    except (KeyError, TypeError, ValueError, AttributeError) as e:
+    except (KeyError, TypeError, AttributeError) as e:
         raise InputError(f"not a box calibration result (parameters, fit): {e}", key="--calibration") from None
-    modal0 = truth_modes(params, sensors=sensors, exciter=exciter)
+    model, params = calibrated_box_model(calibration)  # the file's factor set
+    modal0 = truth_modes(params, sensors=sensors, exciter=exciter, model=model)
     zeta = np.full(modal0.frequency_hz.size, np.nan)
     # damping of the modes the calibration was fitted to (its own identification), by label
     rows = calibration.get("identified_modes") or [{"label": m.label, "damping_ratio": m.damping_ratio}
@@ -67,7 +69,7 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
     default = float(np.median([z for z in identified.values() if z is not None]))
     zeta = np.where(np.isfinite(zeta), zeta, np.where(np.array(modal0.kind) == "elastic", default,
                                                       modal0.damping_ratio))
-    modal = truth_modes(params, damping=zeta, sensors=sensors, exciter=exciter)
+    modal = truth_modes(params, damping=zeta, sensors=sensors, exciter=exciter, model=model)
     lo, hi = ident.settings.band
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]

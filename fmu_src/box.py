@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from calibration.data.errors import InputError
-from calibration.models.box import assemble, shinkansen_vehicle
+from calibration.calibrate_box import calibrated_box_model
 from calibration.models.box.reduction import ReducedVehicle, reduce_vehicle
 from calibration.truth.excitation import EXCITER, SENSOR_GRID
 
@@ -58,19 +58,12 @@ def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | Non
     return _ordered(v)
 
 
-def box_reduced(calibration: dict, cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> ReducedVehicle:
-    model = assemble(shinkansen_vehicle())
-    params = calibration.get("parameters", {})
-    unknown = sorted(set(params) - set(model.names))
-    if unknown:
-        raise InputError(f"box parameter(s) {', '.join(unknown)} unknown; known: {', '.join(model.names)}",
-                         key="parameters")
-    bad = [n for n, x in params.items() if not (isinstance(x, (int, float)) and np.isfinite(x) and x > 0)]
-    if bad:
-        raise InputError(f"box parameter(s) {', '.join(bad)} must be positive numbers", key="parameters")
+def box_reduced(calibration: dict, cutoff_hz: float = DEFAULT_CUTOFF_HZ, *, model=None) -> ReducedVehicle:
+    """The calibrated vehicle reduced for the FMU; ``model``: (model, factors) of
+    :func:`calibrated_box_model` when already built (the file's factor set otherwise)."""
     if not 10.0 <= cutoff_hz <= 300.0:
         raise InputError(f"cut-off {cutoff_hz} Hz outside 10-300 Hz", key="--cutoff-hz")
-    p = {n: float(params.get(n, 1.0)) for n in model.names}
+    model, p = calibrated_box_model(calibration) if model is None else model
     return reduce_vehicle(model, p, cutoff_hz, SENSOR_GRID, EXCITER)
 
 

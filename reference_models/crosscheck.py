@@ -131,7 +131,7 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
     computed once for both exudyn systems. The time check's wall time counts them, exudyn's
     items, static solution and integration, and railcal's exact response; its limit is
     ``TOLERANCES["wall_s_per_10_s"]`` per 10 s simulated."""
-    from calibration.models.box import assemble, shinkansen_vehicle
+    from calibration.calibrate_box import calibrated_box_model
     from calibration.truth.excitation import EXCITER, SENSOR_GRID
     from fmu_src.box import box_reduced, box_spec, calibrated_damping
     from fmu_src.reference import box_reference
@@ -140,9 +140,8 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
                       full_frequencies, reduced_frequencies, simulate_box_exudyn)
 
     distance, level = np.asarray(distance, float), np.asarray(level, float)
-    reduced = box_reduced(calibration, cutoff_hz)  # parameters checked here (exit 2 on bad ones)
-    model = assemble(shinkansen_vehicle())
-    p = {n: float(calibration["parameters"].get(n, 1.0)) for n in model.names}
+    model, p = calibrated_box_model(calibration)  # the file's factor set; parameters checked (exit 2 on bad ones)
+    reduced = box_reduced(calibration, cutoff_hz, model=(model, p))
     zeta = calibrated_damping(calibration)
     t0 = time.perf_counter()
     modes = carbody_modes(model.vehicle, p, cutoff_hz, SENSOR_GRID, EXCITER)  # exudyn's flexible body, once

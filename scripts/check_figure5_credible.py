@@ -1,10 +1,12 @@
 """Check (issue 4): can a *credible* Shinkansen-type carbody carry the seed's Figure 5
 frequencies with the mode types we assume (scripts/data/rtri_figure5_targets.toml)?
 
-``railcal calibrate --targets`` searches the twelve factors of ``SEARCH_PARAMETERS``,
-where each panel group's in-plane shear moves with its in-plane normal rigidity. Here the
-shear of roof, floor and sides is a factor of its own (14 factors), each in a range fixed
-*before* the fit by what is physically credible for an aluminium double-skin carbody:
+It runs the pipeline of ``railcal calibrate --targets`` (``calibrate_box``) on the credible
+factor set (``CREDIBLE_FACTORS`` in ``calibration/models/box/shinkansen.py``, the CLI's default
+for typed targets), or on the variants below, and says more about the answer. Unlike the
+grouped set (the truth simulator's twelve), the in-plane shear of roof, floor and sides is a
+factor of its own (14 factors), each in a range fixed *before* the fit by what is physically
+credible for an aluminium double-skin carbody:
 
 * in-plane normal rigidity 0.5-2 (material and skin thickness are fairly well known);
 * in-plane shear 0.1-2 (window and door openings, extrusions' shear flexibility);
@@ -25,9 +27,10 @@ bar with such soft ends brings the second torsion down towards the first
 (``scripts/estimate_torsion_ratio.py``), which the assumed typing asks (1.65, not 2).
 
 ``--all-joints``: after the swarm and the refinement, the polish (``--polish``) also moves the
-four joint springs CREDIBLE keeps nominal, from nominal: the end walls' joints (to roof, floor
-and sides) and the joints between the three floor panels, in the joint ranges above. (A swarm
-over all 18 factors, 200 x 200, ended at 1.45 %, these four on their limits.)
+four joint springs (``POLISH_JOINT_FACTORS``) from nominal: the end walls' joints (to roof,
+floor and sides) and the joints between the three floor panels, in the joint ranges above;
+with ``--polish 30`` this is the CLI's credible set. (A swarm over all 18 factors, 200 x 200,
+ended at 1.45 %, these four on their limits.)
 
 ``--probe`` asks, at the answer, what holds the error there: the minimax of the frequencies
 linearised with the full model's exact eigen-derivatives (d f / d log p_i =
@@ -58,39 +61,20 @@ from pathlib import Path
 import numpy as np
 
 from calibration.calibrate import read_targets
-from calibration.calibrate_box import swarm_box
+from calibration.calibrate_box import box_search, calibrate_box
 from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC
 from calibration.data.campaign import Sensor
-from calibration.models.box import assemble, shinkansen_vehicle
+from calibration.models.box import FactorSet, assemble, shinkansen_vehicle
 from calibration.models.box.assembly import StiffnessParameter
-from calibration.models.box.fit import BoxFit, polish_box, refine_box, sensor_operator
+from calibration.models.box.fit import BoxFit, sensor_operator
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets
 from calibration.models.box.reduced import full_modes
-from calibration.models.box.shinkansen import Geometry
-from calibration.optimisers.base import SearchParameter
+from calibration.models.box.shinkansen import CREDIBLE_FACTORS, POLISH_JOINT_FACTORS, Geometry
 from calibration.optimisers.minimax import linearised_minimax
 from calibration.optimisers.pso import PSOSettings
 from calibration.truth.excitation import SENSOR_GRID
 
 TARGETS = Path(__file__).parent / "data" / "rtri_figure5_targets.toml"
-NORMAL, BENDING = ("A11", "A22", "A12"), ("D11", "D22", "D12", "D66")
-#: (factor, credible range): stated before the fit, see the module docstring
-CREDIBLE = (
-    (StiffnessParameter("roof_membrane", "panel", "roof", NORMAL, "roof in-plane normal"), (0.5, 2.0)),
-    (StiffnessParameter("roof_shear", "panel", "roof", ("A66",), "roof in-plane shear"), (0.1, 2.0)),
-    (StiffnessParameter("roof_bending", "panel", "roof", BENDING, "roof bending"), (0.25, 4.0)),
-    (StiffnessParameter("floor_membrane", "panel", "floor", NORMAL, "floor in-plane normal"), (0.5, 2.0)),
-    (StiffnessParameter("floor_shear", "panel", "floor", ("A66",), "floor in-plane shear"), (0.1, 2.0)),
-    (StiffnessParameter("floor_bending", "panel", "floor", BENDING, "floor bending"), (0.25, 4.0)),
-    (StiffnessParameter("side_membrane", "panel", "side", NORMAL, "side in-plane normal"), (0.5, 2.0)),
-    (StiffnessParameter("side_shear", "panel", "side", ("A66",), "side in-plane shear"), (0.1, 2.0)),
-    (StiffnessParameter("side_bending", "panel", "side", BENDING, "side bending"), (0.25, 4.0)),
-    (StiffnessParameter("end_rigidity", "panel", "end", NORMAL + ("A66",) + BENDING, "end walls"), (0.1, 4.0)),
-    (StiffnessParameter("roof_side_k_r", "joint", "roof_side", ("k_r",), "roof-side rotational"), (0.25, 20.0)),
-    (StiffnessParameter("floor_side_k_r", "joint", "floor_side", ("k_r",), "floor-side rotational"), (0.25, 20.0)),
-    (StiffnessParameter("roof_side_k_t", "joint", "roof_side", ("k_t",), "roof-side translational"), (0.1, 10.0)),
-    (StiffnessParameter("floor_side_k_t", "joint", "floor_side", ("k_t",), "floor-side translational"), (0.1, 10.0)),
-)
 #: ``--orthotropic``: each roof, floor and side rigidity along and across the car a factor of
 #: its own (the seed's panels are anisotropic); A12 and D12 stay nominal (nu = 0.3 gives
 #: A12^2 = 0.09 A11 A22 and D12^2 = 0.09 D11 D22), so the lower limits 0.5 and 0.35 keep
@@ -105,13 +89,7 @@ ORTHOTROPIC = tuple(
         ("D11", ("D11",), "bending along", (0.35, 4.0)),
         ("D22", ("D22",), "bending across", (0.35, 4.0)),
         ("D66", ("D66",), "twisting", (0.3, 4.0)))
-) + tuple(c for c in CREDIBLE if c[0].kind == "joint" or c[0].group == "end")  # end walls, joints as before
-#: ``--all-joints``: the end walls' joints and the joints between the floor panels as factors
-#: too, in the joint ranges above (CREDIBLE frees only the roof-side and floor-side joints)
-MORE_JOINTS = tuple(
-    (StiffnessParameter(f"{g}_{k}", "joint", g, (k,), f"{g} joint {text}"), limits)
-    for g in ("end", "floor_floor")
-    for k, text, limits in (("k_r", "rotational", (0.25, 20.0)), ("k_t", "translational", (0.1, 10.0))))
+) + tuple(c for c in CREDIBLE_FACTORS if c[0].kind == "joint" or c[0].group == "end")  # end walls, joints as before
 
 
 def probe(fit: BoxFit, p, low, high, trust: float = 0.05, steps: int = 8) -> None:
@@ -169,7 +147,7 @@ def main() -> int:
     ap.add_argument("--side-end-zone", type=float, default=0.0, metavar="METRES",
                     help="a factor more: the side walls' in-plane shear over this length at each end (doors)")
     args = ap.parse_args()
-    credible = ORTHOTROPIC if args.orthotropic else CREDIBLE
+    credible = ORTHOTROPIC if args.orthotropic else CREDIBLE_FACTORS
     if args.side_end_zone > 0:
         credible = credible + ((StiffnessParameter("side_end_shear", "panel", "side", ("A66",),
                                                    "side in-plane shear at the door zones",
@@ -177,37 +155,32 @@ def main() -> int:
 
     targets = read_targets(args.targets, labels=tuple(MODE_TYPES), model="the box model (mode types)")
     g = Geometry()
-
-    def box_fit(credible):
-        model = assemble(shinkansen_vehicle(parameters=tuple(q for q, _ in credible)))
-        fit = BoxFit(model, sensor_operator(model, SENSOR_GRID), typed_targets(targets, SENSOR_GRID, g.length, g.width),
-                     min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.min_mac)
-        return (fit, *(np.array([r[i] for _, r in credible]) for i in (0, 1)))
-
-    fit, low, high = box_fit(credible)
-    search = tuple(SearchParameter(q.name, 1.0, 0.3, lo, hi, 0.01) for (q, _), lo, hi in zip(credible, low, high))
+    typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
+    staged = POLISH_JOINT_FACTORS if args.all_joints else ()
+    credible = credible + staged
+    factors = FactorSet("check", tuple(q for q, _ in credible), tuple(r for _, r in credible), len(staged))
     t0 = time.perf_counter()
-    res, p = swarm_box(fit, search, np.random.default_rng(args.seed),
-                       PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5), log_factors=True)
-    print(f"swarm {args.particles} x {res.iterations} on log factors: {fit.full_check(p)['max_error_pct']:.3f} % "
-          f"(full model), {time.perf_counter() - t0:.0f} s", flush=True)
-    ref = refine_box(fit, p, low, high, rounds=args.rounds)
-    p = ref.parameters
+    cal = calibrate_box(typed, SENSOR_GRID, box_search(factors=factors), factors=factors, seed=args.seed,
+                        settings=PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5),
+                        min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.min_mac, log_factors=True,
+                        refine_rounds=args.rounds, polish_steps=args.polish,
+                        progress=lambda m: print(" ", m, flush=True))
+    ref, pol = cal.refinement, cal.refinement.get("polish")
+    print(f"swarm {args.particles} x {cal.pso['iterations']} on log factors over {len(cal.pso['factors'])} factors: "
+          f"{cal.pso['best_full_pct']:.3f} % (full model), {cal.pso['wall_s']:.0f} s")
+    print(f"after {ref['rounds']} refinement rounds: max error "
+          f"{(pol['start_max_error_pct'] if pol else ref['end_max_error_pct']):.3f} % (target 0.5 %)")
+    if pol:
+        print(f"after {pol['steps']} polishing steps over {len(pol['factors'])} factors ({pol['kept']} kept): "
+              f"max error {pol['end_max_error_pct']:.3f} % (target 0.5 %)")
+    print(f"{time.perf_counter() - t0:.0f} s in all")
+    model = assemble(shinkansen_vehicle(parameters=factors.parameters))
+    fit = BoxFit(model, sensor_operator(model, SENSOR_GRID), typed, min_carbody_share=TYPED_MIN_CARBODY_SHARE,
+                 min_mac=args.min_mac)
+    p = np.array([cal.parameters[n] for n in factors.names])
+    low, high = (np.array([r[i] for r in factors.ranges]) for i in (0, 1))
+    fit.rebuild(p)
     check = fit.full_check(p)
-    print(f"after {ref.rounds} refinement rounds: max error {check['max_error_pct']:.3f} % (target 0.5 %)")
-    if args.all_joints:  # the polish also moves the four joints the swarm kept nominal
-        credible = credible + MORE_JOINTS
-        fit, low, high = box_fit(credible)
-        p = np.r_[p, np.ones(len(MORE_JOINTS))]
-        fit.rebuild(p)
-        print(f"with the end-wall and floor-floor joints as factors (nominal): "
-              f"{fit.full_check(p)['max_error_pct']:.3f} %")
-    if args.polish:
-        pol = polish_box(fit, p, low, high, steps=args.polish, progress=lambda m: print(" ", m, flush=True))
-        p = pol.parameters
-        check = fit.full_check(p)
-        print(f"after {pol.rounds} polishing steps ({pol.statuses.count('kept')} kept): max error "
-              f"{check['max_error_pct']:.3f} % (target 0.5 %)")
     for (q, (lo, hi)), v in zip(credible, p):
         limit = " ON A LIMIT" if min(abs(np.log(v / lo)), abs(np.log(v / hi))) < 0.02 else ""
         print(f"  {q.name:16s} {v:7.3f}   credible {lo:g}-{hi:g}{limit}")

@@ -6,8 +6,8 @@ measured mode is unknown. Every typing assumed before a fit (``scripts/data/rtri
 stayed at 4.5-16 %. This script asks the data instead: for every ordering of six distinct
 types of ``MODE_TYPES`` over (a)-(f) (a second bending, torsion or breathing above its
 first), the smallest RTRI eq. 3 error that a carbody in the credible box of
-``check_figure5_credible.CREDIBLE`` reaches while each target's partner has MAC >= ``--mac``
-with its type's floor pattern and no two targets share a partner:
+``CREDIBLE_FACTORS`` (calibration/models/box/shinkansen.py) reaches while each target's
+partner has MAC >= ``--mac`` with its type's floor pattern and no two targets share a partner:
 
 1. one reduced basis for the whole credible box (modes at the nominal point and at
    ``--basis-points`` - 1 random log-uniform points, POD-compressed to ``--basis-size``
@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from check_figure5_credible import CREDIBLE, TARGETS  # noqa: E402
+from check_figure5_credible import TARGETS  # noqa: E402
 
 from calibration.calibrate import read_targets  # noqa: E402
 from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC  # noqa: E402
@@ -43,7 +43,7 @@ from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402
 from calibration.models.box.reduced import ReducedFamily, full_modes  # noqa: E402
-from calibration.models.box.shinkansen import Geometry  # noqa: E402
+from calibration.models.box.shinkansen import CREDIBLE_FACTORS, Geometry  # noqa: E402
 from calibration.optimisers.minimax import linearised_minimax  # noqa: E402
 from calibration.truth.excitation import SENSOR_GRID  # noqa: E402
 
@@ -74,12 +74,12 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     measured = np.array(list(read_targets(TARGETS, labels=tuple(MODE_TYPES), model="box").values()))
     types = tuple(MODE_TYPES)
-    model = assemble(shinkansen_vehicle(parameters=tuple(q for q, _ in CREDIBLE)))
+    model = assemble(shinkansen_vehicle(parameters=tuple(q for q, _ in CREDIBLE_FACTORS)))
     g = Geometry()
     fit = BoxFit(model, sensor_operator(model, SENSOR_GRID),
                  typed_targets({t: 10.0 for t in types}, SENSOR_GRID, g.length, g.width),
                  min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.mac)
-    lo, hi = (np.log([r[i] for _, r in CREDIBLE]) for i in (0, 1))
+    lo, hi = (np.log([r[i] for _, r in CREDIBLE_FACTORS]) for i in (0, 1))
 
     def draw(n):
         return np.exp(lo + (hi - lo) * rng.random((n, len(lo))))

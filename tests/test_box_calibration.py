@@ -12,8 +12,8 @@ from calibration.calibrate_box import box_search, calibrate_box, targets_from_id
 from calibration.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.excitation import identify_excitation
-from calibration.models.box.fit import (BoxFit, ModeTarget, band_pairing, carbody_mass, mac_matrix, polish_box,
-                                        select_targets, sensor_operator)
+from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass,
+                                        mac_matrix, polish_box, select_targets, sensor_operator)
 from calibration.models.box.reduced import full_modes
 from calibration.models.box.mode_types import MODE_TYPES, template
 from calibration.optimisers.pso import PSOSettings
@@ -176,6 +176,63 @@ def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
     assert check["max_error_pct"] == pytest.approx(r.max_error_pct) and np.all(check["mac"] >= 0.8)
 
 
+class _OneFactorFit:
+    """One target at 1.1 times its frequency, moved by one log factor q; its MAC
+    0.8001 - 20 q^2 is flat at q = 0 (so the linearised floor does not bind) and falls a hair
+    under 0.8 beyond |q| = 0.0022, where the frequency gains more than the score's
+    shortfall penalty costs."""
+    min_mac, f_target = 0.8, np.array([10.0])
+
+    def full_check(self, p):
+        q = np.log(np.asarray(p, float))
+        ratio, mac = 1.1 * np.exp(q), 0.8001 - 20 * q**2
+        return {"frequency_hz": self.f_target * ratio, "mac": mac, "sound": mac >= self.min_mac,
+                "max_error_pct": float(100 * np.abs(ratio - 1)[0] + MAC_SHORTFALL_PCT * max(0.8 - mac[0], 0))}
+
+    def frequency_gradient(self, p):
+        return self.full_check(p), 1.1 * np.asarray(p, float)[:, None]
+
+
+def test_the_polish_never_trades_a_sound_pairing_for_a_lower_score():
+    """A step that lowers the scored error but takes a sound pairing a hair under the MAC
+    floor is refused; the region halves until a step keeps the pairing sound."""
+    fit = _OneFactorFit()
+    assert fit.full_check([np.exp(-0.005)])["max_error_pct"] < fit.full_check([1.0])["max_error_pct"]
+    r = polish_box(fit, [1.0], [0.5], [2.0], steps=3, trust=0.005)
+    assert r.statuses == ("unsound", "unsound", "kept")
+    assert np.log(r.parameters[0]) == pytest.approx(-0.00125)
+    assert fit.full_check(r.parameters)["sound"].all()
+
+
+def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(model):
+    """The credible set: the swarm and the refinement move 14 factors, the end-wall and
+    floor-floor joints join, nominal, in the polish; the file records the set, and the model
+    it describes is rebuilt from it (old files without a set: the grouped factors)."""
+    from calibration.calibrate_box import calibrated_box_model
+    from calibration.data.errors import InputError
+    from calibration.models.box import factor_set
+    from calibration.models.box.mode_types import typed_targets
+
+    fs = factor_set("credible")
+    targets = typed_targets({"vertical_bending_1": 9.88, "torsion_1": 15.79}, SENSOR_GRID, 24.5, 3.38)
+    cal = calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
+                        settings=PSOSettings(particles=6, iterations=2, target=0.5), min_mac=0.8, log_factors=True,
+                        refine_rounds=1, polish_steps=1)
+    out = cal.to_json()
+    assert out["factor_set"] == "credible" and list(out["parameters"]) == list(fs.names)
+    assert out["pso"]["factors"] == list(fs.names[:14]) and out["refinement"]["polish"]["factors"] == list(fs.names)
+    assert out["search"]["end_k_r"] == [0.25, 20.0] and out["search"]["roof_shear"] == [0.1, 2.0]
+    assert out["max_error_pct"] <= out["refinement"]["start_max_error_pct"]
+    rebuilt, p = calibrated_box_model({"factor_set": "credible", "parameters": {"roof_shear": 0.5}})
+    assert rebuilt.names == fs.names and p["roof_shear"] == 0.5 and p["end_k_t"] == 1.0
+    assert calibrated_box_model({"parameters": {}})[0].names == factor_set("grouped").names
+    for bad, word in (({"factor_set": "bespoke", "parameters": {}}, "bespoke"),
+                      ({"factor_set": "credible", "parameters": {"roof_membrane": 1.0}}, "roof_membrane"),
+                      ({"parameters": {"side_shear": float("nan")}}, "positive")):
+        with pytest.raises(InputError, match=word):
+            calibrated_box_model(bad)
+
+
 def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     root = shaker[0]
     assert main(["calibrate", str(root), "--model", "box", "--method", "ce", "--out", str(tmp_path / "c.json")]) == 2
@@ -185,6 +242,14 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     assert main(["calibrate", "--targets", str(bad), "--model", "box", "--method", "pso",
                  "--out", str(tmp_path / "c.json")]) == 2
     assert "wobble" in capsys.readouterr().err
+    good = tmp_path / "g.toml"
+    good.write_text('[[targets]]\nlabel = "breathing"\nfrequency_hz = 18.5\n')
+    assert main(["calibrate", "--targets", str(good), "--model", "box", "--method", "pso", "--factors", "bespoke",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "bespoke" in capsys.readouterr().err
+    assert main(["calibrate", str(root), "--model", "box", "--method", "pso", "--factors", "credible",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "grouped" in capsys.readouterr().err
     assert not (tmp_path / "c.json").exists()
 
 

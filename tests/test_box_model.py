@@ -286,3 +286,36 @@ def test_an_end_zone_factor_splits_the_panel_and_leaves_the_nominal_vehicle_unch
     # softer ends lower the free-free bar's first extension and the beam's first bending
     f_plain, f_soft = _frequencies(plain, n=8), _frequencies(zoned, np.array([0.3, 1.0]), n=8)
     assert np.all(f_soft[6:] < f_plain[6:])
+
+
+def test_every_factor_set_is_the_nominal_vehicle_at_nominal_factors_and_names_one_meaning_once():
+    """A factor set only chooses which rigidities move together: at factors 1 each set's
+    stiffness is the same; a name shared by two sets scales the same rigidities in both; each
+    set's range holds the nominal."""
+    from calibration.models.box import FACTOR_SETS
+
+    stiffness = {}
+    for fs in FACTOR_SETS.values():
+        assert len(set(fs.names)) == len(fs.names) == len(fs.ranges)
+        assert all(lo < 1.0 < hi for lo, hi in fs.ranges)
+        m = assemble(shinkansen_vehicle(order_increase=-4, parameters=fs.parameters))
+        stiffness[fs.name] = m.stiffness(np.ones(len(m.names))).toarray()
+    first, *rest = stiffness.values()
+    for K in rest:
+        np.testing.assert_allclose(K, first, rtol=0, atol=1e-12 * np.abs(first).max())
+    meaning = {}
+    for fs in FACTOR_SETS.values():
+        for q in fs.parameters:
+            what = (q.kind, q.group, set(q.terms), q.end_zone)
+            assert meaning.setdefault(q.name, what) == what, q.name
+
+
+def test_the_credible_set_frees_the_end_and_floor_joints_only_in_the_polish():
+    from calibration.models.box import factor_set
+
+    fs = factor_set("credible")
+    assert len(fs.names) == 18 and fs.polish_only == 4
+    assert {q.group for q in fs.parameters[-4:]} == {"end", "floor_floor"}
+    assert factor_set(None).name == "grouped"
+    with pytest.raises(ValueError, match="known: grouped, credible"):
+        factor_set("orthotropic")

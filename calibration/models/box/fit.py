@@ -382,7 +382,9 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     minimax step (:func:`calibration.optimisers.minimax.linearised_minimax`) within
     +-``trust`` in log factors and the bounds that keeps every linearised MAC >= the floor +
     ``margin`` (a MAC already below that: >= its value). A step is kept only if the full
-    model's scored error falls; the region then grows by half, else it halves, and the polish
+    model's scored error falls and no sound pairing turns unsound (the score's penalty for a
+    MAC a hair under the floor can be smaller than a step's gain, and a fit with an unsound
+    pairing has lost a mode); the region then grows by half, else it halves, and the polish
     stops when it falls under ``min_trust`` (0.1 % of the factors). Never returns a worse
     full-model error than its start. Each step costs 1 + 2 d full eigen-solves with the floor
     (d factors), 1 without."""
@@ -406,12 +408,13 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
             trust /= 2
             continue
         trial, G_trial = fit.frequency_gradient(np.exp(q + lp[0]))
-        kept = trial["max_error_pct"] < best
-        statuses.append("kept" if kept else "not kept")
+        lost = bool(np.any(check["sound"] & ~trial["sound"]))  # a sound pairing made unsound
+        kept = trial["max_error_pct"] < best and not lost
+        statuses.append("kept" if kept else "unsound" if lost else "not kept")
         if progress:
             progress(f"polish step {len(statuses)}: region +-{100 * trust:.3g} %, predicted {100 * lp[1]:.3f} %, "
                      f"full model {trial['max_error_pct']:.3f} %, MAC {' '.join(f'{v:.3f}' for v in trial['mac'])}"
-                     f"{'' if kept else ' (not kept)'}")
+                     f"{'' if kept else ' (not kept: a pairing unsound)' if lost else ' (not kept)'}")
         if kept:
             q, check, G, best = q + lp[0], trial, G_trial, trial["max_error_pct"]
             trust *= 1.5
