@@ -204,6 +204,29 @@ def test_the_polish_never_trades_a_sound_pairing_for_a_lower_score():
     assert fit.full_check(r.parameters)["sound"].all()
 
 
+class _UnsoundStartFit(_OneFactorFit):
+    """One target met exactly at q = 0 with its MAC 0.79, a hair under the floor: the MAC
+    rises with q (slope 1), the frequency too (ratio exp(q / 2))."""
+
+    def full_check(self, p):
+        q = np.log(np.asarray(p, float))
+        ratio, mac = np.exp(q / 2), 0.79 + q
+        return {"frequency_hz": self.f_target * ratio, "mac": mac, "sound": mac >= self.min_mac,
+                "max_error_pct": float(100 * np.abs(ratio - 1)[0] + MAC_SHORTFALL_PCT * max(0.8 - mac[0], 0))}
+
+    def frequency_gradient(self, p):
+        return self.full_check(p), 0.5 * np.exp(np.log(np.asarray(p, float)) / 2)[:, None]
+
+
+def test_the_polish_lifts_an_unsound_pairing_over_the_floor_when_the_score_gains():
+    """Met in frequency but penalised 10 % for a MAC 0.01 under the floor: the polish gives up
+    half a per cent of frequency to take the MAC back to the floor."""
+    fit = _UnsoundStartFit()
+    r = polish_box(fit, [1.0], [0.5], [2.0], steps=1, trust=0.02)
+    assert r.start_max_error_pct == pytest.approx(10.0)
+    assert r.statuses == ("kept",) and r.max_error_pct == pytest.approx(0.5, abs=0.01)
+
+
 def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(model):
     """The credible set: the swarm and the refinement move 14 factors, the end-wall and
     floor-floor joints join, nominal, in the polish; the file records the set, and the model

@@ -40,3 +40,16 @@ def test_a_floor_on_another_quantity_is_kept_at_the_cost_of_the_fit():
 
 def test_a_floor_the_region_cannot_reach_has_no_step():
     assert linearised_minimax(RATIO, G, Q, LO, HI, 0.05, np.array([0.7]), np.array([[1.0, 0.0]]), 0.8) is None
+
+
+def test_a_mac_under_its_floor_is_lifted_back_only_where_the_scored_penalty_outweighs_the_frequency():
+    # one target met exactly; its MAC 0.79 rises with the factor (slope 1), its frequency too
+    # (slope 0.5); the score adds weight x the shortfall under 0.8
+    ratio, g, mac, J = np.array([1.0]), np.array([[0.5]]), np.array([0.79]), np.array([[1.0]])
+    q, lo, hi = np.zeros(1), np.full(1, -1.0), np.full(1, 1.0)
+    d, t = linearised_minimax(ratio, g, q, lo, hi, 0.05, penalty=(mac, J, 0.8, 10.0))
+    assert d[0] == pytest.approx(0.01) and t == pytest.approx(0.005)  # lifted to the floor: 0.5 % off
+    d, t = linearised_minimax(ratio, g, q, lo, hi, 0.05, penalty=(mac, J, 0.8, 0.4))
+    assert d[0] == pytest.approx(0.0, abs=1e-12) and t == pytest.approx(0.004)  # cheaper to stay under
+    d, t = linearised_minimax(ratio, g, q, lo, hi, 0.05)
+    assert d[0] == pytest.approx(0.0, abs=1e-12) and t == pytest.approx(0.0, abs=1e-12)  # no penalty: frequencies only

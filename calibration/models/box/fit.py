@@ -381,7 +381,9 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     floor, their MACs (central differences of +-``h`` in each log factor), and takes the
     minimax step (:func:`calibration.optimisers.minimax.linearised_minimax`) within
     +-``trust`` in log factors and the bounds that keeps every linearised MAC >= the floor +
-    ``margin`` (a MAC already below that: >= its value). A step is kept only if the full
+    ``margin`` (a MAC already below that: >= its value), each target's error carrying the
+    score's penalty for its linearised MAC shortfall (so an unsound pairing is lifted back
+    over the floor where that pays, as the score counts it). A step is kept only if the full
     model's scored error falls and no sound pairing turns unsound (the score's penalty for a
     MAC a hair under the floor can be smaller than a step's gain, and a fit with an unsound
     pairing has lost a mode); the region then grows by half, else it halves, and the polish
@@ -397,12 +399,15 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     for _ in range(steps):
         if trust < min_trust:
             break
-        keep = None
+        keep, penalty = None, None
         if fit.min_mac > 0:
             E = h * np.eye(q.size)
-            keep = (check["mac"], np.array([fit.full_check(np.exp(q + e))["mac"] - fit.full_check(np.exp(q - e))["mac"]
-                                            for e in E]).T / (2 * h), np.minimum(check["mac"], fit.min_mac + margin))
-        lp = linearised_minimax(check["frequency_hz"] / fit.f_target, G, q, lo, hi, trust, *(keep or ()))
+            J = np.array([fit.full_check(np.exp(q + e))["mac"] - fit.full_check(np.exp(q - e))["mac"]
+                          for e in E]).T / (2 * h)
+            keep = (check["mac"], J, np.minimum(check["mac"], fit.min_mac + margin))
+            penalty = (check["mac"], J, fit.min_mac, MAC_SHORTFALL_PCT / 100)
+        lp = linearised_minimax(check["frequency_hz"] / fit.f_target, G, q, lo, hi, trust, *(keep or ()),
+                                penalty=penalty)
         if lp is None:
             statuses.append("no step keeps the MAC floor")
             trust /= 2
