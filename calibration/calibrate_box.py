@@ -131,10 +131,10 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     set's model (negative: a coarse, fast model for tests)."""
     if model is not None and factors is not None:
         raise ValueError("give a model or a factor set, not both")
-    set_name = "custom" if model is not None else (factors or factor_set(None)).name
-    factors = factor_set(None) if factors is None and model is None else factors
     if model is None:
+        factors = factor_set(None) if factors is None else factors
         model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.swarm_parameters))
+    set_name = "custom" if factors is None else factors.name
     names = tuple(p.name for p in search)
     expected = model.names if factors is None else factors.names
     if names != expected:

@@ -51,12 +51,10 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
     exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
-    try:
-        calibration["parameters"].items()
-        fit = calibration["fit"]
-    except (KeyError, TypeError, AttributeError) as e:
-        raise InputError(f"not a box calibration result (parameters, fit): {e}", key="--calibration") from None
-    model, params = calibrated_box_model(calibration)  # the file's factor set
+    if not (isinstance(calibration, dict) and {"parameters", "fit"} <= set(calibration)):
+        raise InputError("not a box calibration result: it needs parameters and fit", key="--calibration")
+    fit = calibration["fit"]
+    model, params = calibrated_box_model(calibration)  # the file's factor set; parameters checked
     modal0 = truth_modes(params, sensors=sensors, exciter=exciter, model=model)
     zeta = np.full(modal0.frequency_hz.size, np.nan)
     # damping of the modes the calibration was fitted to (its own identification), by label
