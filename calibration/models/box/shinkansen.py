@@ -154,7 +154,11 @@ class FactorSet:
     parameters: tuple[StiffnessParameter, ...]
     ranges: tuple[tuple[float, float], ...]
     polish_only: int = 0
-    description: str = ""
+
+    @classmethod
+    def from_pairs(cls, name: str, pairs, polish_only: int = 0) -> FactorSet:
+        """From (factor, range) pairs, as ``CREDIBLE_FACTORS``."""
+        return cls(name, tuple(q for q, _ in pairs), tuple(r for _, r in pairs), polish_only)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -166,15 +170,12 @@ class FactorSet:
 
 
 FACTOR_SETS = {
-    "grouped": FactorSet("grouped", SEARCH_PARAMETERS, (GROUPED_RANGE,) * len(SEARCH_PARAMETERS),
-                         description="membrane and bending of roof, floor and sides (the side's shear apart), "
-                                     "the ends together, the roof-side and floor-side joints; the truth "
-                                     "simulator's parameters"),
-    "credible": FactorSet("credible", tuple(q for q, _ in CREDIBLE_FACTORS + POLISH_JOINT_FACTORS),
-                          tuple(r for _, r in CREDIBLE_FACTORS + POLISH_JOINT_FACTORS), len(POLISH_JOINT_FACTORS),
-                          description="in-plane normal, in-plane shear and bending of roof, floor and sides apart, "
-                                      "the ends together, every joint, in ranges stated credible before any fit; "
-                                      "the end-wall and floor-floor joints are freed in the polish"),
+    # the truth simulator's parameters: membrane and bending of roof, floor and sides (the
+    # side's shear apart), the ends together, the roof-side and floor-side joints
+    "grouped": FactorSet("grouped", SEARCH_PARAMETERS, (GROUPED_RANGE,) * len(SEARCH_PARAMETERS)),
+    # in-plane normal, in-plane shear and bending of roof, floor and sides apart, the ends
+    # together, every joint; the end-wall and floor-floor joints freed in the polish
+    "credible": FactorSet.from_pairs("credible", CREDIBLE_FACTORS + POLISH_JOINT_FACTORS, len(POLISH_JOINT_FACTORS)),
 }
 DEFAULT_FACTOR_SET = "grouped"
 
