@@ -133,6 +133,32 @@ def test_a_target_pairs_only_with_carbody_modes_when_asked(model):
     assert fit.pair(p[None, :]).index[0, 0] == seen  # the reduced pairing skips it too
 
 
+def test_the_basis_is_rebuilt_off_schedule_when_the_best_gains_far_from_its_centre(model):
+    """A basis is exact at its centre only. The swarm's best is checked every iteration: far
+    from the centre (more than 2 %) and more than 30 % better than the centre's error, it is
+    rebuilt at once, not at the next check due (every 25 iterations); near the centre, or
+    far without such a gain, it waits for the check due. Rebuilt, the error at the centre is
+    the full model's."""
+    S = sensor_operator(model, SENSOR_GRID)
+    truth = np.ones(len(model.names))
+    truth[:3] = (1.3, 0.8, 1.2)
+    f, X = full_modes(model, truth, 30)
+    targets = select_targets(f, S @ X, n=4)
+    fit = BoxFit(model, S, targets)
+    centre = np.ones(len(model.names))
+    fit.rebuild(centre)
+    assert fit.confirmed == pytest.approx(fit.full_check(centre)["max_error_pct"], rel=1e-6)
+    near, worse = centre * 1.01, 2 * truth - centre
+    assert fit(worse[None])[0] > 0.7 * fit.confirmed
+    assert not fit.adapt(3, near) and not fit.adapt(3, worse)
+    assert fit.adapt(25, worse)  # the check due
+    fit.rebuild(centre)
+    assert fit(truth[None])[0] < 0.7 * fit.confirmed
+    assert fit.adapt(3, truth)  # off schedule
+    np.testing.assert_array_equal(fit.centre, truth)
+    assert fit.confirmed == pytest.approx(fit.full_check(truth)["max_error_pct"], abs=0.05)
+
+
 def test_a_typed_target_counts_only_when_its_pairing_is_sound(model):
     """With ``min_mac`` a target paired to a mode unlike its pattern (MAC below the floor)
     adds 10 % per 0.01 of shortfall, and one whose partner a better-matching target already
