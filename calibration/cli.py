@@ -238,9 +238,17 @@ def _calibrate_box(args) -> int:
     print(f"pso {pso['particles']} x {pso['iterations']} iterations over {len(pso['factors'])} of the "
           f"{len(result.parameters)} {result.factor_set} factors ({pso['evaluations_per_s']:.0f} evaluations/s): "
           f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
-          f"{result.max_error_pct:.2g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}; "
-          f"{result.identifiability['summary']}; wrote {args.out}")
+          f"{result.max_error_pct:.2g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}"
+          f"{_unsound(result.fit)}; {result.identifiability['summary']}; wrote {args.out}")
     return EXIT_OK
+
+
+def _unsound(fit) -> str:
+    """The summary's note of pairings that do not count as they are (under the MAC floor or
+    sharing a partner; :meth:`BoxFit.sound`), with the MAC to six places: a MAC of 0.799999
+    prints as 0.800 but is under a floor of 0.8."""
+    bad = [r for r in fit if not r["sound"]]
+    return "".join(f", {r['label']} unsound (MAC {r['mac']:.6f})" for r in bad)
 
 
 #: A typed target (an idealised floor pattern, no measured amplitude) pairs only with model

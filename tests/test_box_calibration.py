@@ -302,6 +302,14 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     assert not (tmp_path / "c.json").exists()
 
 
+def test_the_summary_names_a_pairing_a_hair_under_the_mac_floor():
+    """A MAC of 0.7999991 rounds to 0.800 but is under a floor of 0.8: the summary says so."""
+    from calibration.cli import _unsound
+    fit = [{"label": "torsion_1", "mac": 0.884, "sound": True}, {"label": "breathing", "mac": 0.7999991, "sound": False}]
+    assert _unsound(fit) == ", breathing unsound (MAC 0.799999)"
+    assert _unsound(fit[:1]) == ""
+
+
 def test_identify_writes_modes_and_plots_for_a_shaker_campaign(shaker, tmp_path):
     out = tmp_path / "id.json"
     assert main(["identify", str(shaker[0]), "--out", str(out), "--quiet"]) == 0
