@@ -70,6 +70,7 @@ from calibration.models.box.fit import BoxFit, sensor_operator
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets
 from calibration.models.box.reduced import full_modes
 from calibration.models.box.shinkansen import CREDIBLE_FACTORS, POLISH_JOINT_FACTORS, Geometry
+from calibration.optimisers.base import bounds
 from calibration.optimisers.minimax import linearised_minimax
 from calibration.optimisers.pso import PSOSettings
 from calibration.truth.excitation import SENSOR_GRID
@@ -159,8 +160,9 @@ def main() -> int:
     staged = POLISH_JOINT_FACTORS if args.all_joints else ()
     credible = credible + staged
     factors = FactorSet.from_pairs("check", credible, len(staged))
+    search = box_search(factors=factors)
     t0 = time.perf_counter()
-    cal = calibrate_box(typed, SENSOR_GRID, box_search(factors=factors), factors=factors, seed=args.seed,
+    cal = calibrate_box(typed, SENSOR_GRID, search, factors=factors, seed=args.seed,
                         settings=PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5),
                         min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.min_mac, log_factors=True,
                         refine_rounds=args.rounds, polish_steps=args.polish,
@@ -189,7 +191,7 @@ def main() -> int:
         if args.describe:
             describe(fit, p)
         if args.probe:
-            probe(fit, p, *(np.array([r[i] for r in factors.ranges]) for i in (0, 1)))
+            probe(fit, p, *bounds(search))
     return 0 if cal.max_error_pct <= 0.5 else 1
 
 
