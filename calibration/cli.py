@@ -266,8 +266,9 @@ TYPED_MIN_MAC = 0.8
 #: CasADi refinement (TYPED_REFINE_ROUNDS), which fits frequencies only, has its rounds
 #: refused; up to this many sequential-LP steps on the full model that keep the floor follow
 #: it (polish_box), over the whole factor set: the credible set's end-wall and floor-floor
-#: joints join here. On typing D with the credible set, 200 x 200, seed 0: 0.459 %; with the
-#: grouped 12 factors the polish found no such step (2.89 % stays, 400 x 300 swarm).
+#: joints join here. On typing D with the credible set, 200 x 200, seed 0: 0.422 % (1000 x
+#: 1000: 0.517-0.551 %); with the grouped 12 factors the polish found no such step (2.89 %
+#: stays, 400 x 300 swarm).
 TYPED_POLISH_STEPS = 30
 TYPED_REFINE_ROUNDS = 20
 
