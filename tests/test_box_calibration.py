@@ -185,9 +185,8 @@ def test_a_typed_target_counts_only_when_its_pairing_is_sound(model):
 
 
 def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
-    """The sequential LP on the full model (exact frequency derivatives, MACs by central
-    differences) moves three modes of a nominal model towards those of a perturbed one:
-    every kept step lowers the full model's error, and no MAC falls under the floor."""
+    """The sequential LP on the full model (exact frequency and MAC derivatives) moves
+    three modes of a nominal model towards those of a perturbed one: every kept step lowers the full model's error, and no MAC falls under the floor."""
     S = sensor_operator(model, SENSOR_GRID)
     p_true = np.exp(np.random.default_rng(1).uniform(-0.15, 0.15, len(model.names)))
     f, X = full_modes(model, p_true, 30)
@@ -200,6 +199,26 @@ def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
     assert r.statuses == ("kept", "kept") and r.max_error_pct < 0.5 * r.start_max_error_pct
     check = fit.full_check(r.parameters)
     assert check["max_error_pct"] == pytest.approx(r.max_error_pct) and np.all(check["mac"] >= 0.8)
+
+
+def test_the_mac_derivatives_are_those_of_the_full_model(model):
+    """The partners' MAC derivatives in log factors (Nelson's eigenvector derivative) agree
+    with central differences of the full model along a random direction, as the frequency
+    derivatives do."""
+    S = sensor_operator(model, SENSOR_GRID)
+    targets = tuple(ModeTarget(t, f, template(t, SENSOR_GRID, 24.5, 3.38))
+                    for t, f in (("vertical_bending_1", 10.0), ("torsion_1", 12.0), ("breathing", 18.5)))
+    fit = BoxFit(model, S, targets, min_mac=0.8)
+    rng = np.random.default_rng(3)
+    p = np.exp(rng.uniform(-0.3, 0.3, len(model.names)))
+    fit.rebuild(p)
+    check, G, J = fit.gradients(p)
+    v, h = rng.standard_normal(p.size), 1e-4
+    up, down = fit.full_check(p * np.exp(h * v)), fit.full_check(p * np.exp(-h * v))
+    assert np.array_equal(up["index"], check["index"]) and np.array_equal(down["index"], check["index"])
+    assert J @ v == pytest.approx((up["mac"] - down["mac"]) / (2 * h), rel=1e-4, abs=1e-7)
+    assert np.abs(J @ v).max() > 1e-3  # the shapes do move
+    assert G @ v == pytest.approx((up["frequency_hz"] - down["frequency_hz"]) / (2 * h) / fit.f_target, rel=1e-4)
 
 
 class _OneFactorFit:
@@ -215,8 +234,9 @@ class _OneFactorFit:
         return {"frequency_hz": self.f_target * ratio, "mac": mac, "sound": mac >= self.min_mac,
                 "max_error_pct": float(100 * np.abs(ratio - 1)[0] + MAC_SHORTFALL_PCT * max(0.8 - mac[0], 0))}
 
-    def frequency_gradient(self, p):
-        return self.full_check(p), 1.1 * np.asarray(p, float)[:, None]
+    def gradients(self, p):
+        q = np.log(np.asarray(p, float))
+        return self.full_check(p), 1.1 * np.exp(q)[:, None], -40 * q[:, None]
 
 
 def test_the_polish_never_trades_a_sound_pairing_for_a_lower_score():
@@ -240,8 +260,8 @@ class _UnsoundStartFit(_OneFactorFit):
         return {"frequency_hz": self.f_target * ratio, "mac": mac, "sound": mac >= self.min_mac,
                 "max_error_pct": float(100 * np.abs(ratio - 1)[0] + MAC_SHORTFALL_PCT * max(0.8 - mac[0], 0))}
 
-    def frequency_gradient(self, p):
-        return self.full_check(p), 0.5 * np.exp(np.log(np.asarray(p, float)) / 2)[:, None]
+    def gradients(self, p):
+        return self.full_check(p), 0.5 * np.exp(np.log(np.asarray(p, float)) / 2)[:, None], np.ones((1, 1))
 
 
 def test_the_polish_lifts_an_unsound_pairing_over_the_floor_when_the_score_gains():

@@ -292,10 +292,47 @@ class BoxFit:
         f_target_k) (x_k M-normalised; K linear in p, M independent of it): (check, (T, d))."""
         p = np.asarray(p, float)
         check, f, X = self._full_check(p)
-        idx = check["index"]
+        return check, self._frequency_jacobian(p, f, X, check["index"])
+
+    def gradients(self, p) -> tuple[dict, np.ndarray, np.ndarray]:
+        """:meth:`frequency_gradient` at p and the derivatives of the partners' MACs,
+        d MAC_k / d log p_i (T, d), with each target's partner held: the eigenvector
+        derivative of Nelson's method in bordered form, [K - w_k^2 M, M x_k; x_k^T M, 0]
+        [dx; mu] = [-(K_i - (x_k^T K_i x_k) M) x_k; 0] (one sparse factorisation per partner,
+        the d right-hand sides together; exact for a simple eigenvalue; Nelson, AIAA J. 14
+        (1976) 1201-1205), then MAC = |a^H S x|^2 / (a^H a |S x|^2) differentiated. A
+        target with a half-power band may pair with the span of several modes
+        (:func:`band_pairing`), which this does not differentiate: then central
+        differences of +-1e-3 in each log factor (2 d more full eigen-solves). Returns
+        (check, d (f / f_target) / d log p, d MAC / d log p)."""
+        import scipy.sparse.linalg
+
+        p = np.asarray(p, float)
+        check, f, X = self._full_check(p)
+        G = self._frequency_jacobian(p, f, X, check["index"])
+        if np.any(self.band > 0):
+            E = 1e-3 * np.eye(p.size)
+            J = np.array([self.full_check(p * np.exp(e))["mac"] - self.full_check(p * np.exp(-e))["mac"]
+                          for e in E]).T / 2e-3
+            return check, G, J
+        K, M = self.model.stiffness(p), self.model.M
+        J = np.empty((len(self.targets), p.size))
+        for t, k in enumerate(check["index"]):
+            x = X[:, k]
+            Mx = M @ x
+            A = sp.bmat([[K - (2 * np.pi * f[k]) ** 2 * M, Mx[:, None]], [Mx[None, :], None]], format="csc")
+            Kx = np.column_stack([self.model.K_units[n] @ x for n in self.names])  # (n_dof, d)
+            rhs = -(Kx - np.outer(Mx, x @ Kx))
+            dX = scipy.sparse.linalg.splu(A).solve(np.vstack([rhs, np.zeros((1, p.size))]))[:-1] * p
+            a, y, dy = self.shapes[:, t], self.sensors @ x, self.sensors @ dX
+            c, aa, yy = np.vdot(a, y), np.real(np.vdot(a, a)), float(y @ y)
+            J[t] = (2 * np.real(np.conj(c) * (np.conj(a) @ dy)) * yy - abs(c) ** 2 * 2 * (y @ dy)) / (aa * yy**2)
+        return check, G, J
+
+    def _frequency_jacobian(self, p, f, X, idx):
         J = np.array([[p[i] * (x @ (self.model.K_units[n] @ x)) for i, n in enumerate(self.names)]
                       for x in X[:, idx].T])
-        return check, J / (8 * np.pi**2 * f[idx][:, None]) / self.f_target[:, None]
+        return J / (8 * np.pi**2 * f[idx][:, None]) / self.f_target[:, None]
 
     def _full_check(self, p):
         p = np.asarray(p, float)
@@ -384,28 +421,28 @@ def refine_box(fit: BoxFit, p_start, low, high, *, rounds: int = 10, trust: floa
 
 
 def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float = 0.005, margin: float = 0.005,
-               h: float = 1e-3, min_trust: float = 1e-3, progress=None) -> BoxRefinement:
+               min_trust: float = 1e-3, progress=None) -> BoxRefinement:
     """Sequential linear programming on the *full* model, after :func:`refine_box` where the
     MAC floor binds: the CasADi NLP fits frequencies only, and near the answer the step it
     wants can take a pairing's MAC under ``fit.min_mac`` (a partner mixing with a close
     neighbour), so every such round is refused. Each step here linearises the partners'
-    frequencies (exact eigen-derivatives, :meth:`BoxFit.frequency_gradient`) and, with a MAC
-    floor, their MACs (central differences of +-``h`` in each log factor), and takes the
-    minimax step (:func:`calibration.optimisers.minimax.linearised_minimax`) within
-    +-``trust`` in log factors and the bounds that keeps every linearised MAC >= the floor +
-    ``margin`` (a MAC already below that: >= its value), each target's error carrying the
-    score's penalty for its linearised MAC shortfall (so an unsound pairing is lifted back
-    over the floor where that pays, as the score counts it). A step is kept only if the full
-    model's scored error falls and no sound pairing turns unsound (the score's penalty for a
-    MAC a hair under the floor can be smaller than a step's gain, and a fit with an unsound
-    pairing has lost a mode); the region then grows by half, else it halves, and the polish
-    stops when it falls under ``min_trust`` (0.1 % of the factors). Never returns a worse
-    full-model error than its start. Each step costs 1 + 2 d full eigen-solves with the floor
-    (d factors), 1 without."""
+    frequencies and MACs (exact eigenvalue and eigenvector derivatives,
+    :meth:`BoxFit.gradients`) and takes the minimax step
+    (:func:`calibration.optimisers.minimax.linearised_minimax`) within +-``trust`` in log
+    factors and the bounds that keeps every linearised MAC >= the floor + ``margin`` (a MAC
+    already below that: >= its value), each target's error carrying the score's penalty for
+    its linearised MAC shortfall (so an unsound pairing is lifted back over the floor where
+    that pays, as the score counts it). A step is kept only if the full model's scored error
+    falls and no sound pairing turns unsound (the score's penalty for a MAC a hair under the
+    floor can be smaller than a step's gain, and a fit with an unsound pairing has lost a
+    mode); the region then grows by half, else it halves, and the polish stops when it falls
+    under ``min_trust`` (0.1 % of the factors). Never returns a worse full-model error than
+    its start. Each step costs one full eigen-solve and one sparse factorisation per target
+    (it cost 1 + 2 d eigen-solves, d factors, with the MACs by central differences)."""
     from ...optimisers.minimax import linearised_minimax
 
     q, lo, hi = np.log(np.asarray(p_start, float)), np.log(np.asarray(low, float)), np.log(np.asarray(high, float))
-    check, G = fit.frequency_gradient(np.exp(q))
+    check, G, J = fit.gradients(np.exp(q))
     start = best = check["max_error_pct"]
     statuses = []
     for _ in range(steps):
@@ -413,9 +450,6 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
             break
         keep, penalty = None, None
         if fit.min_mac > 0:
-            E = h * np.eye(q.size)
-            J = np.array([fit.full_check(np.exp(q + e))["mac"] - fit.full_check(np.exp(q - e))["mac"]
-                          for e in E]).T / (2 * h)
             keep = (check["mac"], J, np.minimum(check["mac"], fit.min_mac + margin))
             penalty = (check["mac"], J, fit.min_mac, MAC_SHORTFALL_PCT / 100)
         lp = linearised_minimax(check["frequency_hz"] / fit.f_target, G, q, lo, hi, trust, *(keep or ()),
@@ -424,7 +458,7 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
             statuses.append("no step keeps the MAC floor")
             trust /= 2
             continue
-        trial, G_trial = fit.frequency_gradient(np.exp(q + lp[0]))
+        trial, G_trial, J_trial = fit.gradients(np.exp(q + lp[0]))
         lost = bool(np.any(check["sound"] & ~trial["sound"]))  # a sound pairing made unsound
         kept = trial["max_error_pct"] < best and not lost
         statuses.append("kept" if kept else "unsound" if lost else "not kept")
@@ -433,7 +467,7 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
                      f"full model {trial['max_error_pct']:.3f} %, MAC {' '.join(f'{v:.3f}' for v in trial['mac'])}"
                      f"{'' if kept else ' (not kept: a pairing unsound)' if lost else ' (not kept)'}")
         if kept:
-            q, check, G, best = q + lp[0], trial, G_trial, trial["max_error_pct"]
+            q, check, G, J, best = q + lp[0], trial, G_trial, J_trial, trial["max_error_pct"]
             trust *= 1.5
         else:
             trust /= 2
