@@ -104,15 +104,17 @@ class Stabilisation:
     max_damping: float
 
     def select_modes(self, *, min_fraction: float = 0.4, cluster_tol: float = 0.005,
-                     cluster_mac: float = 0.9) -> list[Mode]:
+                     cluster_mac: float = 0.9, bandwidth_fraction: float = 0.0) -> list[Mode]:
         """Physical modes: clusters of consistent poles across orders, one mode each.
 
         Candidates are the poles stable in frequency against the previous order (damping
         and shape are left to the clustering: near a close pair they wander between
         orders while the frequency holds). Two poles belong to one mode when they differ
-        by at most ``cluster_tol`` in frequency (relative) *and* their shapes have MAC >=
-        ``cluster_mac``; poles of one order never do. Average-linkage clustering on
-        d = max(|df| / (cluster_tol f), (1 - MAC) / (1 - cluster_mac)) cut at 1 (the
+        in frequency by at most tol = max(``cluster_tol``, ``bandwidth_fraction`` x their
+        mean damping ratio) (relative: a pole's frequency scatters in proportion to its
+        half-power bandwidth, 2 zeta f) *and* their shapes have MAC >= ``cluster_mac``;
+        poles of one order never do. Average-linkage clustering on
+        d = max(|df| / (tol f), (1 - MAC) / (1 - cluster_mac)) cut at 1 (the
         frequency-and-shape distance of automated modal analysis, Reynders, Houbrechts &
         De Roeck, Mech. Syst. Signal Process. 29 (2012) 228-250) keeps a close pair apart
         where a cut on frequency alone would merge it. Within a cluster each order keeps
@@ -135,7 +137,8 @@ class Stabilisation:
         if f.size == 1:
             labels = np.zeros(1, int)
         else:
-            d_f = np.abs(f[:, None] - f[None, :]) / (cluster_tol * 0.5 * (f[:, None] + f[None, :]))
+            tol = np.maximum(cluster_tol, bandwidth_fraction * 0.5 * (zeta[:, None] + zeta[None, :]))
+            d_f = np.abs(f[:, None] - f[None, :]) / (tol * 0.5 * (f[:, None] + f[None, :]))
             d = np.maximum(d_f, (1.0 - mac(shapes, shapes)) / (1.0 - cluster_mac))
             d[order[:, None] == order[None, :]] = 1e6  # one pole per order and mode
             np.fill_diagonal(d, 0.0)
