@@ -53,3 +53,18 @@ def test_a_mac_under_its_floor_is_lifted_back_only_where_the_scored_penalty_outw
     assert d[0] == pytest.approx(0.0, abs=1e-12) and t == pytest.approx(0.004)  # cheaper to stay under
     d, t = linearised_minimax(ratio, g, q, lo, hi, 0.05)
     assert d[0] == pytest.approx(0.0, abs=1e-12) and t == pytest.approx(0.0, abs=1e-12)  # no penalty: frequencies only
+
+
+def test_a_step_cost_leaves_the_factors_the_errors_do_not_see_where_they_are():
+    # a third factor moves nothing: without a cost the LP may put it anywhere in the region
+    # (a vertex: its edge); with a small cost it stays, and the largest error falls as before
+    g = np.hstack([G, np.zeros((2, 1))])
+    q, lo, hi = np.zeros(3), np.full(3, -1.0), np.full(3, 1.0)
+    d, t = linearised_minimax(RATIO, g, q, lo, hi, trust=0.01, step_cost=1e-4)
+    assert d[2] == pytest.approx(0.0, abs=1e-12)
+    assert t == pytest.approx(0.02)  # the same reach as without the cost
+    assert d[:2] == pytest.approx([0.0, 0.01], abs=1e-12)  # and of the first only what the max needs: none
+    # a step gaining less than it costs is not taken: 0.01 % off, the factor moves it one for one
+    d, t = linearised_minimax(np.array([1.0001]), np.eye(1), np.zeros(1), np.full(1, -1.0), np.full(1, 1.0),
+                              trust=0.01, step_cost=2.0)
+    assert d[0] == pytest.approx(0.0, abs=1e-12) and t == pytest.approx(1e-4)

@@ -7,7 +7,10 @@ G = d r / d log p (m, n), the step d minimises t subject to
     c_j + (C d)_j >= floor                (optional: quantities kept above a floor, e.g. MACs)
     |d_k| <= trust,  lo_k <= q_k + d_k <= hi_k,
 
-a linear programme (HiGHS). The predicted max relative error is t. With a shortfall
+a linear programme (HiGHS). The predicted max relative error is t. With a ``step_cost`` c
+the LP minimises t + c sum_k |d_k| instead: of the steps that reach (nearly) the same t it
+takes the smallest, so factors the errors hardly depend on stay where they are rather than
+riding to a corner of the region at every step. With a shortfall
 penalty (each target's MAC a_i, its derivatives J, a floor and a weight w, as the box fit
 scores an unsound pairing), target i's row becomes |r_i + (G d)_i - 1| + w s_i <= t with
 s_i >= floor - a_i - (J d)_i and s_i >= 0: t is then the linearised *scored* error, and a
@@ -18,12 +21,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def linearised_minimax(ratio, G, q, lo, hi, trust: float, keep=None, keep_grad=None, floor=0.0, penalty=None):
+def linearised_minimax(ratio, G, q, lo, hi, trust: float, keep=None, keep_grad=None, floor=0.0, penalty=None,
+                       step_cost: float = 0.0):
     """The step d in log factors minimising max |ratio + G d - 1| within +-``trust`` of ``q``
     and inside [``lo``, ``hi``]; with ``keep`` (k,) and its derivatives ``keep_grad`` (k, n),
     also keeps keep + keep_grad d >= ``floor`` (a number or one per row); with ``penalty`` =
     (a (m,), J (m, n), floor, weight), each target's error carries weight x its linearised
-    shortfall of a under the floor. Returns (d, the predicted max), or None if the LP has no
+    shortfall of a under the floor; ``step_cost`` per unit of |d| (summed over the factors)
+    is added to the objective. Returns (d, the predicted max t), or None if the LP has no
     solution (e.g. the floor cannot be kept within the region)."""
     from scipy.optimize import linprog
 
@@ -41,7 +46,13 @@ def linearised_minimax(ratio, G, q, lo, hi, trust: float, keep=None, keep_grad=N
         K = np.asarray(keep_grad, float)
         A = np.vstack([A, np.hstack([-K, np.zeros((K.shape[0], 1 + ns))])])
         b = np.concatenate([b, np.asarray(keep, float) - floor])
-    r = linprog(np.r_[np.zeros(n), 1.0, np.zeros(ns)], A_ub=A, b_ub=b, method="highs",
+    nu = n if step_cost > 0 else 0  # u_k >= |d_k|
+    A = np.hstack([A, np.zeros((A.shape[0], nu))])
+    if nu:
+        I = np.eye(n)
+        A = np.vstack([A, np.hstack([I, np.zeros((n, 1 + ns)), -I]), np.hstack([-I, np.zeros((n, 1 + ns)), -I])])
+        b = np.concatenate([b, np.zeros(2 * n)])
+    r = linprog(np.r_[np.zeros(n), 1.0, np.zeros(ns), np.full(nu, step_cost)], A_ub=A, b_ub=b, method="highs",
                 bounds=[(max(-trust, a - x), min(trust, c - x)) for x, a, c in zip(q, lo, hi)]
-                + [(0, None)] * (1 + ns))
-    return (r.x[:n], r.fun) if r.success else None
+                + [(0, None)] * (1 + ns + nu))
+    return (r.x[:n], r.x[n]) if r.success else None
