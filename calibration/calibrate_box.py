@@ -10,7 +10,7 @@ of the factors from the measured frequencies is reported.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -115,7 +115,8 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
                   sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
                   min_carbody_share: float = 0.0, min_mac: float = 0.0, log_factors: bool = False,
-                  refine_rounds: int = 10, polish_steps: int = 0, order_change: int = 0) -> BoxCalibration:
+                  refine_rounds: int = 10, polish_steps: int = 0, order_change: int = 0,
+                  swarms: int = 1) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``search``: one entry per factor of ``factors`` (a named set, default grouped) or, for a
     ``model`` assembled elsewhere, of that model (its file then records the set "custom");
@@ -124,13 +125,21 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
     16 or more, where a linear swarm crowds the upper end); ``refine_rounds``: of the CasADi
     refinement; ``polish_steps``: after the refinement, up to this many sequential-LP steps
-    on the full model that keep the MAC floor (:func:`polish_box`; each costs 1 + 2 d full
-    eigen-solves with a floor, d factors). A set's ``polish_only`` factors stay nominal in the
+    on the full model that keep the MAC floor (:func:`polish_box`; each costs one full
+    eigen-solve). A set's ``polish_only`` factors stay nominal in the
     swarm and the refinement (a model without them) and join the polish (a model with them);
     without a polish they stay nominal. ``order_change``: added to every panel order of a
-    set's model (negative: a coarse, fast model for tests)."""
+    set's model (negative: a coarse, fast model for tests).
+
+    ``swarms``: the particles are split into this many independent swarms, run one after
+    the other from the same random generator (one: the seed's single swarm). A swarm
+    gathers on one basin; each swarm's best is refined and polished and the lowest full-model
+    error is the answer, the others reported beside it. The search stops early once a
+    swarm's best meets ``settings.target`` on the full model (the seed's stopping rule)."""
     if model is not None and factors is not None:
         raise ValueError("give a model or a factor set, not both")
+    if swarms < 1 or settings.particles // swarms < 2:
+        raise ValueError(f"{swarms} swarms of {settings.particles} particles: each swarm needs 2 or more")
     if model is None:
         factors = factor_set(None) if factors is None else factors
         model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.swarm_parameters))
@@ -143,36 +152,43 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share,
                  min_mac=min_mac)
     low, high = bounds(search)
-    t0 = time.perf_counter()
-    res, best = swarm_box(fit, search[:len(model.names)], np.random.default_rng(seed), settings,
-                          log_factors=log_factors)
-    wall = time.perf_counter() - t0
-    check = fit.full_check(best)
-    pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": res.evaluations,
-           "wall_s": wall, "evaluations_per_s": res.evaluations / wall, "basis_rebuilds": fit.rebuilds,
-           "best_reduced_pct": res.best_value, "best_full_pct": check["max_error_pct"],
-           "reached_stop": res.reached_target, "stop_pct": settings.target,
-           "factors": list(model.names), "history_pct": [float(v) for v in res.history]}
-    p = best
-    refinement = None
-    if refine:
+    rng = np.random.default_rng(seed)
+    each = settings if swarms == 1 else replace(settings, particles=settings.particles // swarms)
+    runs = []
+    for k in range(swarms):
+        if progress and swarms > 1:
+            progress(f"swarm {k + 1} of {swarms}: {each.particles} particles")
+        rebuilds, t0 = fit.rebuilds, time.perf_counter()
+        res, best = swarm_box(fit, search[:len(model.names)], rng, each, log_factors=log_factors)
+        runs.append({"res": res, "best": best, "check": fit.full_check(best), "wall": time.perf_counter() - t0,
+                     "rebuilds": fit.rebuilds - rebuilds})
+        if runs[-1]["check"]["max_error_pct"] <= settings.target:
+            break
+    polish_fit = None
+    if refine and polish_steps > 0 and staged:  # the set's remaining factors join, nominal: the same error
+        polish_model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
+        polish_fit = BoxFit(polish_model, sensor_operator(polish_model, sensors), targets,
+                            min_carbody_share=min_carbody_share, min_mac=min_mac)
+    for k, run in enumerate(runs):
+        run["p"], run["refinement"], run["fit"] = run["best"], None, fit
+        if not refine:
+            continue
         if progress:
-            progress("refining on the reduced model in rounds, checked on the full model (CasADi/IPOPT)")
-        r = refine_box(fit, p, low[:p.size], high[:p.size], rounds=refine_rounds)
+            progress(f"{f'swarm {k + 1}: ' if swarms > 1 else ''}refining on the reduced model in rounds, checked "
+                     "on the full model (CasADi/IPOPT)")
+        r = refine_box(fit, run["best"], low[:len(model.names)], high[:len(model.names)], rounds=refine_rounds)
         refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
                       "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
         p = r.parameters
         if polish_steps > 0:
-            if staged:  # the set's remaining factors join, nominal: the same stiffness, so the same error
-                model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
-                fit = BoxFit(model, sensor_operator(model, sensors), targets, min_carbody_share=min_carbody_share,
-                             min_mac=min_mac)
+            if staged:
+                run["fit"] = polish_fit
                 p = np.r_[p, np.ones(staged)]
-                fit.rebuild(p)
+                polish_fit.rebuild(p)
             if progress:
                 progress(f"polishing {len(names)} factors on the full model "
                          f"(sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
-            pol = polish_box(fit, p, low, high, steps=polish_steps, progress=progress)
+            pol = polish_box(run["fit"], p, low, high, steps=polish_steps, progress=progress)
             refinement["polish"] = {"steps": pol.rounds, "kept": pol.statuses.count("kept"),
                                     "statuses": list(pol.statuses), "factors": list(names),
                                     "start_max_error_pct": pol.start_max_error_pct,
@@ -180,6 +196,25 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
             refinement["end_max_error_pct"] = pol.max_error_pct
             refinement["improved"] = pol.max_error_pct < r.start_max_error_pct
             p = pol.parameters
+        run["p"], run["refinement"] = p, refinement
+    end = [run["check"]["max_error_pct"] if run["refinement"] is None else run["refinement"]["end_max_error_pct"]
+           for run in runs]
+    chosen = runs[int(np.argmin(end))]
+    res, check, p, refinement, fit = chosen["res"], chosen["check"], chosen["p"], chosen["refinement"], chosen["fit"]
+    wall = sum(run["wall"] for run in runs)
+    evaluations = sum(run["res"].evaluations for run in runs)
+    pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": evaluations,
+           "wall_s": wall, "evaluations_per_s": evaluations / wall, "basis_rebuilds": sum(r["rebuilds"] for r in runs),
+           "best_reduced_pct": res.best_value, "best_full_pct": check["max_error_pct"],
+           "reached_stop": res.reached_target, "stop_pct": settings.target,
+           "factors": list(model.names), "history_pct": [float(v) for v in res.history]}
+    if swarms > 1:
+        pso["swarms"] = [{"particles": each.particles, "iterations": run["res"].iterations,
+                          "evaluations": run["res"].evaluations,
+                          "best_full_pct": run["check"]["max_error_pct"], "end_max_error_pct": e,
+                          "basis_rebuilds": run["rebuilds"], "wall_s": run["wall"], "chosen": run is chosen,
+                          "best": dict(zip(model.names, map(float, run["best"])))}
+                         for run, e in zip(runs, end)]
     final = check if refinement is None else fit.full_check(p)  # unrefined: the swarm's best, already checked
     fit.rebuild(p)  # exact eigenpairs at p for the sensitivities
     sigma = np.broadcast_to(np.asarray(sigma_f, float), (len(targets),))
@@ -204,7 +239,7 @@ def targets_from_identification(ident: ShakerIdentification, *, band: bool = Fal
 
 def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
                            seed: int = 0, refine: bool = True, shaker: ShakerSettings = ShakerSettings(),
-                           progress=None) -> tuple[BoxCalibration, ShakerIdentification]:
+                           progress=None, swarms: int = 1) -> tuple[BoxCalibration, ShakerIdentification]:
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
@@ -217,4 +252,4 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
-                         refine=refine, progress=progress), ident
+                         refine=refine, progress=progress, swarms=swarms), ident

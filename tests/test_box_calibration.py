@@ -302,6 +302,29 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
             calibrated_box_model(bad)
 
 
+def test_independent_swarms_are_each_refined_and_the_lowest_full_model_error_is_the_answer(model):
+    """Split into swarms, the particles gather on as many basins; each swarm's best is refined
+    and polished, the file keeps all of them, and the answer is the one that ends lowest on
+    the full model."""
+    from calibration.models.box import factor_set
+    from calibration.models.box.mode_types import typed_targets
+
+    fs = factor_set("credible")
+    targets = typed_targets({"vertical_bending_1": 9.88, "torsion_1": 15.79}, SENSOR_GRID, 24.5, 3.38)
+    cal = calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
+                        settings=PSOSettings(particles=8, iterations=2, target=0.0), min_mac=0.8, log_factors=True,
+                        refine_rounds=1, polish_steps=1, swarms=2)
+    runs = cal.pso["swarms"]
+    assert [r["particles"] for r in runs] == [4, 4] and sum(r["chosen"] for r in runs) == 1
+    assert runs[0]["best"] != runs[1]["best"]  # two searches, not one twice
+    chosen = next(r for r in runs if r["chosen"])
+    assert chosen["end_max_error_pct"] == min(r["end_max_error_pct"] for r in runs) == cal.max_error_pct
+    assert cal.pso["evaluations"] == sum(r["evaluations"] for r in runs) >= 2 * 4 * 3  # 3 generations each
+    with pytest.raises(ValueError, match="2 or more"):
+        calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
+                      settings=PSOSettings(particles=8, iterations=2), swarms=5)
+
+
 def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     root = shaker[0]
     assert main(["calibrate", str(root), "--model", "box", "--method", "ce", "--out", str(tmp_path / "c.json")]) == 2
