@@ -234,7 +234,7 @@ class _OneFactorFit:
         return {"frequency_hz": self.f_target * ratio, "mac": mac, "sound": mac >= self.min_mac,
                 "max_error_pct": float(100 * np.abs(ratio - 1)[0] + MAC_SHORTFALL_PCT * max(0.8 - mac[0], 0))}
 
-    def gradients(self, p):
+    def gradients(self, p, macs=True):
         q = np.log(np.asarray(p, float))
         return self.full_check(p), 1.1 * np.exp(q)[:, None], -40 * q[:, None]
 
@@ -260,7 +260,7 @@ class _UnsoundStartFit(_OneFactorFit):
         return {"frequency_hz": self.f_target * ratio, "mac": mac, "sound": mac >= self.min_mac,
                 "max_error_pct": float(100 * np.abs(ratio - 1)[0] + MAC_SHORTFALL_PCT * max(0.8 - mac[0], 0))}
 
-    def gradients(self, p):
+    def gradients(self, p, macs=True):
         return self.full_check(p), 0.5 * np.exp(np.log(np.asarray(p, float)) / 2)[:, None], np.ones((1, 1))
 
 

@@ -122,7 +122,8 @@ def identify_excitation(campaign: Campaign, settings: ShakerSettings = ShakerSet
     n_orders = len(stab.orders)
     needed = settings.min_fraction * n_orders
     clusters = stab.select_modes(min_fraction=0.5 * settings.min_fraction, cluster_tol=settings.cluster_tol,
-                                 cluster_mac=settings.cluster_mac, bandwidth_fraction=settings.bandwidth_fraction)  # the weak ones too, to report them
+                                 cluster_mac=settings.cluster_mac,
+                                 bandwidth_fraction=settings.bandwidth_fraction)  # the weak ones too, to report them
     candidates = [m for m in clusters if m.n_stable >= needed]
     weak = [{"frequency_hz": m.frequency_hz, "reason": f"poles alike in frequency and shape in only {m.n_stable} "
              f"of {n_orders} model orders (a mode needs {int(np.ceil(needed))}): not resolved by this test"}

@@ -294,7 +294,7 @@ class BoxFit:
         check, f, X = self._full_check(p)
         return check, self._frequency_jacobian(p, f, X, check["index"])
 
-    def gradients(self, p) -> tuple[dict, np.ndarray, np.ndarray]:
+    def gradients(self, p, macs: bool = True) -> tuple[dict, np.ndarray, np.ndarray | None]:
         """:meth:`frequency_gradient` at p and the derivatives of the partners' MACs,
         d MAC_k / d log p_i (T, d), with each target's partner held: the eigenvector
         derivative of Nelson's method in bordered form, [K - w_k^2 M, M x_k; x_k^T M, 0]
@@ -304,12 +304,14 @@ class BoxFit:
         target with a half-power band may pair with the span of several modes
         (:func:`band_pairing`), which this does not differentiate: then central
         differences of +-1e-3 in each log factor (2 d more full eigen-solves). Returns
-        (check, d (f / f_target) / d log p, d MAC / d log p)."""
+        (check, d (f / f_target) / d log p, d MAC / d log p or None without ``macs``)."""
         import scipy.sparse.linalg
 
         p = np.asarray(p, float)
         check, f, X = self._full_check(p)
         G = self._frequency_jacobian(p, f, X, check["index"])
+        if not macs:
+            return check, G, None
         if np.any(self.band > 0):
             E = 1e-3 * np.eye(p.size)
             J = np.array([self.full_check(p * np.exp(e))["mac"] - self.full_check(p * np.exp(-e))["mac"]
@@ -436,17 +438,18 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     (1e-5: 0.001 % of error per 1 in log factors, a tie-break: a factor the errors do not
     see stays where it is; without it the LP, whose answers are vertices, took the four
     end-wall and floor-floor joints, undetermined, to the same corner at every step and
-    they ended equal, 2.11 each on seed Figure 5). A step is kept only if the full model's scored error
-    falls and no sound pairing turns unsound (the score's penalty for a MAC a hair under the
-    floor can be smaller than a step's gain, and a fit with an unsound pairing has lost a
-    mode); the region then grows by half, else it halves, and the polish stops when it falls
-    under ``min_trust`` (0.1 % of the factors). Never returns a worse full-model error than
-    its start. Each step costs one full eigen-solve and one sparse factorisation per target
-    (it cost 1 + 2 d eigen-solves, d factors, with the MACs by central differences)."""
+    they ended equal, 2.11 each on seed Figure 5). A step is kept only if the full model's
+    scored error falls and no sound pairing turns unsound (the score's penalty for a MAC a
+    hair under the floor can be smaller than a step's gain, and a fit with an unsound
+    pairing has lost a mode); the region then grows by half, else it halves, and the polish
+    stops when it falls under ``min_trust`` (0.1 % of the factors). Never returns a worse
+    full-model error than its start. Each step costs one full eigen-solve and, with a MAC
+    floor, one sparse factorisation per target (it cost 1 + 2 d eigen-solves, d factors,
+    with the MACs by central differences)."""
     from ...optimisers.minimax import linearised_minimax
 
     q, lo, hi = np.log(np.asarray(p_start, float)), np.log(np.asarray(low, float)), np.log(np.asarray(high, float))
-    check, G, J = fit.gradients(np.exp(q))
+    check, G, J = fit.gradients(np.exp(q), macs=fit.min_mac > 0)
     start = best = check["max_error_pct"]
     statuses = []
     for _ in range(steps):
@@ -462,7 +465,7 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
             statuses.append("no step keeps the MAC floor")
             trust /= 2
             continue
-        trial, G_trial, J_trial = fit.gradients(np.exp(q + lp[0]))
+        trial, G_trial, J_trial = fit.gradients(np.exp(q + lp[0]), macs=fit.min_mac > 0)
         lost = bool(np.any(check["sound"] & ~trial["sound"]))  # a sound pairing made unsound
         kept = trial["max_error_pct"] < best and not lost
         statuses.append("kept" if kept else "unsound" if lost else "not kept")
