@@ -273,16 +273,18 @@ TYPED_MIN_MAC = 0.8
 #: CasADi refinement (TYPED_REFINE_ROUNDS), which fits frequencies only, has its rounds
 #: refused; up to this many sequential-LP steps on the full model that keep the floor follow
 #: it (polish_box), over the whole factor set: the credible set's end-wall and floor-floor
-#: joints join here. On typing D with the credible set, 200 x 200, seed 0: 0.422 % (1000 x
-#: 1000: 0.517-0.551 %); with the grouped 12 factors the polish found no such step (2.89 %
-#: stays, 400 x 300 swarm).
+#: joints join here. On typing D with the credible set, 200 x 200 in one swarm, seed 0:
+#: 0.422 %; 1000 x 1000 in four swarms (TYPED_SWARMS), seeds 0 and 1: 0.497 % and 0.499 %;
+#: with the grouped 12 factors the polish found no such step (2.89 % stays, 400 x 300 swarm).
 TYPED_POLISH_STEPS = 30
 #: ... and the particles are split into this many independent swarms, each refined and
 #: polished, the lowest full-model error kept (calibrate_box(swarms=...)): one swarm of 1000
 #: gathers on a single basin, and on the typing D targets (seeds 0 and 1) that was the one
 #: with stiff end walls (4.0, their limit), where the breathing MAC floor stops the polish at
-#: 0.52-0.55 %; four swarms of 250 from seed 0 ended two basins apart (end walls 4.0 and
-#: 0.169; the swarms' bests 0.861 % and 0.711 %).
+#: 0.517 % and 0.551 %. Four swarms of 250 (seeds 0 and 1): each seed's four ended in
+#: different places (swarm bests 0.66-1.14 % and one at 29-36 % with a lost pairing, end walls
+#: at 4.0 and at 0.1-0.29), polished to 0.497 % and 0.499 % (both from a stiff-wall swarm),
+#: 0.56-0.76 % from the others; 54-55 min each, two runs sharing the 2 cores.
 TYPED_SWARMS = 4
 TYPED_REFINE_ROUNDS = 20
 

@@ -437,8 +437,10 @@ def polish_box(fit: BoxFit, p_start, low, high, *, steps: int = 20, trust: float
     that pays, as the score counts it), plus ``step_cost`` per unit of the step's summed |d|
     (1e-5: 0.001 % of error per 1 in log factors, a tie-break: a factor the errors do not
     see stays where it is; without it the LP, whose answers are vertices, took the four
-    end-wall and floor-floor joints, undetermined, to the same corner at every step and
-    they ended equal, 2.11 each on seed Figure 5). A step is kept only if the full model's
+    end-wall and floor-floor joints to the same corner at every step and they ended equal,
+    2.11 each on seed Figure 5; with it the end-wall translational joint stays at 1.0-1.02,
+    while the other three, each worth a little to the largest error, still ride the region's
+    edge together and end equal, 2.7-3.0). A step is kept only if the full model's
     scored error falls and no sound pairing turns unsound (the score's penalty for a MAC a
     hair under the floor can be smaller than a step's gain, and a fit with an unsound
     pairing has lost a mode); the region then grows by half, else it halves, and the polish
