@@ -186,7 +186,8 @@ def test_a_typed_target_counts_only_when_its_pairing_is_sound(model):
 
 def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
     """The sequential LP on the full model (exact frequency and MAC derivatives) moves
-    three modes of a nominal model towards those of a perturbed one: every kept step lowers the full model's error, and no MAC falls under the floor."""
+    three modes of a nominal model towards those of a perturbed one: every kept step lowers
+    the full model's error, and no MAC falls under the floor."""
     S = sensor_operator(model, SENSOR_GRID)
     p_true = np.exp(np.random.default_rng(1).uniform(-0.15, 0.15, len(model.names)))
     f, X = full_modes(model, p_true, 30)
