@@ -26,6 +26,18 @@ from .optimisers.pso import PSOSettings, particle_swarm
 
 DEFAULT_RANGE = GROUPED_RANGE  # stiffness factors, when the campaign gives no priors
 PAPER_STOP_PCT = 0.5  # RTRI seed: stop when the evaluation function reaches 0.5 %
+#: A shaker campaign's particles run as this many independent swarms, the next one only
+#: if the last, refined, is above CAMPAIGN_DONE_PCT: the swarm stops at the seed's 0.5 %,
+#: which is no proof of the right basin. On the demo's test (seed 7) one swarm of 1000
+#: stopped at 0.488 % and refined to 0.0045 % before the identification's clustering
+#: change, and after it (targets moved by up to 0.001 Hz) ran all 1000 iterations to
+#: 0.541 %, floor membrane and three joints on their limits, every refinement round refused;
+#: four swarms of 250 stopped the first at 0.485 % in that same basin.
+CAMPAIGN_SWARMS = 4
+#: ... the refined fit that ends the search: the identified frequencies are within
+#: 0.03-0.07 % of the truth (synthetic seeds 1-3), and the model family holds the truth, so
+#: a fit at the measurements' resolution exists; 0.1 % is twice that resolution.
+CAMPAIGN_DONE_PCT = 0.1
 
 
 @dataclass(frozen=True)
@@ -116,7 +128,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                   sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
                   min_carbody_share: float = 0.0, min_mac: float = 0.0, log_factors: bool = False,
                   refine_rounds: int = 10, polish_steps: int = 0, order_change: int = 0,
-                  swarms: int = 1) -> BoxCalibration:
+                  swarms: int = 1, done_pct: float | None = None) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``search``: one entry per factor of ``factors`` (a named set, default grouped) or, for a
     ``model`` assembled elsewhere, of that model (its file then records the set "custom");
@@ -133,9 +145,11 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
 
     ``swarms``: the particles are split into this many independent swarms, run one after
     the other from the same random generator (one: the seed's single swarm). A swarm
-    gathers on one basin; each swarm's best is refined and polished and the lowest full-model
-    error is the answer, the others reported beside it. The search stops early once a
-    swarm's best meets ``settings.target`` on the full model (the seed's stopping rule)."""
+    gathers on one basin; each swarm's best is refined and polished as soon as the swarm ends
+    and the lowest full-model error is the answer, the others reported beside it. No further
+    swarm runs once one ends, refined, at or below ``done_pct`` on the full model (default,
+    and always without ``refine``: ``settings.target``, the seed's stopping rule, where a swarm
+    itself stops)."""
     if model is not None and factors is not None:
         raise ValueError("give a model or a factor set, not both")
     if swarms < 1 or settings.particles // swarms < 2:
@@ -154,51 +168,33 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     low, high = bounds(search)
     rng = np.random.default_rng(seed)
     each = settings if swarms == 1 else replace(settings, particles=settings.particles // swarms)
-    runs = []
-    for k in range(swarms):
-        if progress and swarms > 1:
-            progress(f"swarm {k + 1} of {swarms}: {each.particles} particles")
-        rebuilds, t0 = fit.rebuilds, time.perf_counter()
-        res, best = swarm_box(fit, search[:len(model.names)], rng, each, log_factors=log_factors)
-        runs.append({"res": res, "best": best, "check": fit.full_check(best), "wall": time.perf_counter() - t0,
-                     "rebuilds": fit.rebuilds - rebuilds})
-        if runs[-1]["check"]["max_error_pct"] <= settings.target:
-            break
+    done_pct = settings.target if done_pct is None or not refine else done_pct
     polish_fit = None
     if refine and polish_steps > 0 and staged:  # the set's remaining factors join, nominal: the same error
         polish_model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
         polish_fit = BoxFit(polish_model, sensor_operator(polish_model, sensors), targets,
                             min_carbody_share=min_carbody_share, min_mac=min_mac)
-    for k, run in enumerate(runs):
-        run["p"], run["refinement"], run["fit"] = run["best"], None, fit
-        if not refine:
-            continue
-        if progress:
-            progress(f"{f'swarm {k + 1}: ' if swarms > 1 else ''}refining on the reduced model in rounds, checked "
-                     "on the full model (CasADi/IPOPT)")
-        r = refine_box(fit, run["best"], low[:len(model.names)], high[:len(model.names)], rounds=refine_rounds)
-        refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
-                      "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
-        p = r.parameters
-        if polish_steps > 0:
-            if staged:
-                run["fit"] = polish_fit
-                p = np.r_[p, np.ones(staged)]
-                polish_fit.rebuild(p)
-            if progress:
-                progress(f"polishing {len(names)} factors on the full model "
-                         f"(sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
-            pol = polish_box(run["fit"], p, low, high, steps=polish_steps, progress=progress)
-            refinement["polish"] = {"steps": pol.rounds, "kept": pol.statuses.count("kept"),
-                                    "statuses": list(pol.statuses), "factors": list(names),
-                                    "start_max_error_pct": pol.start_max_error_pct,
-                                    "end_max_error_pct": pol.max_error_pct}
-            refinement["end_max_error_pct"] = pol.max_error_pct
-            refinement["improved"] = pol.max_error_pct < r.start_max_error_pct
-            p = pol.parameters
-        run["p"], run["refinement"] = p, refinement
-    end = [run["check"]["max_error_pct"] if run["refinement"] is None else run["refinement"]["end_max_error_pct"]
-           for run in runs]
+    runs = []
+    for k in range(swarms):
+        tag = f"swarm {k + 1}: " if swarms > 1 else ""
+        if progress and swarms > 1:
+            progress(f"swarm {k + 1} of {swarms}: {each.particles} particles")
+        rebuilds, t0 = fit.rebuilds, time.perf_counter()
+        res, best = swarm_box(fit, search[:len(model.names)], rng, each, log_factors=log_factors)
+        run = {"res": res, "best": best, "check": fit.full_check(best), "wall": time.perf_counter() - t0,
+               "rebuilds": fit.rebuilds - rebuilds, "p": best, "refinement": None, "fit": fit}
+        runs.append(run)
+        if refine:
+            _refine_swarm_best(run, fit, polish_fit, low, high, names, staged, min_mac=min_mac,
+                               rounds=refine_rounds, polish_steps=polish_steps, progress=progress, tag=tag)
+        end = run["check"]["max_error_pct"] if run["refinement"] is None else run["refinement"]["end_max_error_pct"]
+        run["end"] = end
+        if progress and swarms > 1:
+            progress(f"{tag}ends at {end:.3g} % on the full model"
+                     f"{'' if end > done_pct else f' (at or below {done_pct:g} %: no further swarm)'}")
+        if end <= done_pct:
+            break
+    end = [run["end"] for run in runs]
     chosen = runs[int(np.argmin(end))]
     res, check, p, refinement, fit = chosen["res"], chosen["check"], chosen["p"], chosen["refinement"], chosen["fit"]
     wall = sum(run["wall"] for run in runs)
@@ -230,6 +226,37 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                           {q.name: [q.low, q.high] for q in search}, set_name)
 
 
+def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, high, names, staged: int, *,
+                       min_mac: float, rounds: int, polish_steps: int, progress, tag: str) -> None:
+    """One swarm's best, refined on the reduced model (CasADi) and, with ``polish_steps``,
+    polished on the full model (``polish_fit``: with the set's staged factors); sets the
+    run's ``p``, ``refinement`` and ``fit``."""
+    d = len(fit.model.names)
+    if progress:
+        progress(f"{tag}refining on the reduced model in rounds, checked on the full model (CasADi/IPOPT)")
+    r = refine_box(fit, run["best"], low[:d], high[:d], rounds=rounds)
+    refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
+                  "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
+    p = r.parameters
+    if polish_steps > 0:
+        if staged:
+            run["fit"] = polish_fit
+            p = np.r_[p, np.ones(staged)]
+            polish_fit.rebuild(p)
+        if progress:
+            progress(f"polishing {len(names)} factors on the full model "
+                     f"(sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
+        pol = polish_box(run["fit"], p, low, high, steps=polish_steps, progress=progress)
+        refinement["polish"] = {"steps": pol.rounds, "kept": pol.statuses.count("kept"),
+                                "statuses": list(pol.statuses), "factors": list(names),
+                                "start_max_error_pct": pol.start_max_error_pct,
+                                "end_max_error_pct": pol.max_error_pct}
+        refinement["end_max_error_pct"] = pol.max_error_pct
+        refinement["improved"] = pol.max_error_pct < r.start_max_error_pct
+        p = pol.parameters
+    run["p"], run["refinement"] = p, refinement
+
+
 def targets_from_identification(ident: ShakerIdentification, *, band: bool = False) -> tuple[ModeTarget, ...]:
     """The identified modes as targets; with ``band`` each carries its half-power band
     (its damping ratio), so that a mode identified at a close pair of model modes is
@@ -239,7 +266,8 @@ def targets_from_identification(ident: ShakerIdentification, *, band: bool = Fal
 
 def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
                            seed: int = 0, refine: bool = True, shaker: ShakerSettings = ShakerSettings(),
-                           progress=None, swarms: int = 1) -> tuple[BoxCalibration, ShakerIdentification]:
+                           progress=None, swarms: int = CAMPAIGN_SWARMS,
+                           done_pct: float = CAMPAIGN_DONE_PCT) -> tuple[BoxCalibration, ShakerIdentification]:
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
@@ -252,4 +280,4 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
-                         refine=refine, progress=progress, swarms=swarms), ident
+                         refine=refine, progress=progress, swarms=swarms, done_pct=done_pct), ident

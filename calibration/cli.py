@@ -212,7 +212,7 @@ def cmd_calibrate(args) -> int:
 
 
 def _calibrate_box(args) -> int:
-    from .calibrate_box import calibrate_box_campaign
+    from .calibrate_box import CAMPAIGN_SWARMS, calibrate_box_campaign
     from .optimisers.pso import PSOSettings
 
     if args.method != "pso":
@@ -223,7 +223,7 @@ def _calibrate_box(args) -> int:
     if args.particles < 2 or args.iterations < 1 or not args.stop_pct >= 0:
         raise InputError("need --particles >= 2, --iterations >= 1 and --stop-pct >= 0", key="--particles")
     settings = PSOSettings(particles=args.particles, iterations=args.iterations, target=args.stop_pct)
-    swarms = args.swarms if args.swarms is not None else 1 if args.campaign is not None else TYPED_SWARMS
+    swarms = args.swarms if args.swarms is not None else CAMPAIGN_SWARMS if args.campaign is not None else TYPED_SWARMS
     if swarms < 1 or args.particles // swarms < 2:
         raise InputError(f"--swarms {swarms} with --particles {args.particles}: each swarm needs 2 or more particles",
                          key="--swarms")
@@ -493,6 +493,8 @@ def _crosscheck_box(calibration: dict, args) -> int:
 
 # ------------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
+    from .calibrate_box import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
+
     p = _Parser(prog="railcal", description="Calibrate railway vehicle vibration models from measured data.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -548,8 +550,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--iterations", type=int, default=1000, help="box model: iteration cap (RTRI seed: 1000)")
     s.add_argument("--stop-pct", type=float, default=0.5, help="box model: stop at this evaluation value [%%]")
     s.add_argument("--swarms", type=int, default=None,
-                   help="box model: split the particles into this many independent swarms, each refined, the "
-                        f"best kept (default: {TYPED_SWARMS} with --targets, 1 with a campaign)")
+                   help="box model: split the particles into this many independent swarms, each refined as it "
+                        "ends, the best kept; with --refine no further swarm once one ends within the done "
+                        f"error (--targets: the stop, {TYPED_SWARMS} swarms; a campaign: {CAMPAIGN_DONE_PCT:g} %%, "
+                        f"{CAMPAIGN_SWARMS} swarms)")
     s.add_argument("--refine", action="store_true", help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--factors", default=None, metavar="SET",
                    help="box model: the factor set searched, grouped or credible (default: credible with "

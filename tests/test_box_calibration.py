@@ -326,6 +326,29 @@ def test_independent_swarms_are_each_refined_and_the_lowest_full_model_error_is_
                       settings=PSOSettings(particles=8, iterations=2), swarms=5)
 
 
+def test_no_further_swarm_runs_once_one_ends_refined_within_the_done_error(model):
+    """The swarm's own stop (the seed's 0.5 %) is no proof of the right basin, so a campaign
+    searches on until a swarm ends, refined, within ``done_pct``: met at once, one swarm
+    runs; never met, every swarm runs. Without the refinement the swarm's stop decides."""
+    from calibration.models.box import factor_set
+    from calibration.models.box.mode_types import typed_targets
+
+    fs = factor_set("grouped")
+    targets = typed_targets({"vertical_bending_1": 9.88}, SENSOR_GRID, 24.5, 3.38)
+
+    def swarms_run(done_pct, refine=True):
+        cal = calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
+                            settings=PSOSettings(particles=6, iterations=1, target=0.0), refine_rounds=1,
+                            swarms=3, done_pct=done_pct, refine=refine)
+        done = done_pct if refine else 0.0
+        assert all(r["end_max_error_pct"] > done for r in cal.pso["swarms"][:-1])
+        return len(cal.pso["swarms"])
+
+    assert swarms_run(float("inf")) == 1
+    assert swarms_run(0.0) == 3
+    assert swarms_run(float("inf"), refine=False) == 3  # the swarm's stop, 0.0 here, decides
+
+
 def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     root = shaker[0]
     assert main(["calibrate", str(root), "--model", "box", "--method", "ce", "--out", str(tmp_path / "c.json")]) == 2
