@@ -202,7 +202,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     pso = {"particles": settings.particles, "iterations": res.iterations, "evaluations": evaluations,
            "wall_s": wall, "evaluations_per_s": evaluations / wall, "basis_rebuilds": sum(r["rebuilds"] for r in runs),
            "best_reduced_pct": res.best_value, "best_full_pct": check["max_error_pct"],
-           "reached_stop": res.reached_target, "stop_pct": settings.target,
+           "reached_stop": res.reached_target, "stop_pct": settings.target, "done_pct": done_pct,
            "factors": list(model.names), "history_pct": [float(v) for v in res.history]}
     if swarms > 1:
         pso["swarms"] = [{"particles": each.particles, "iterations": run["res"].iterations,

@@ -257,10 +257,11 @@ def _shaker_report(s: dict) -> str:
         f"{len(ident.rejected)} candidates rejected, each with its reason, in `shaker_identification.json`; "
         "stabilisation diagram `shaker_identification.png`, auto-MAC `shaker_identification_mac.png`.",
         "",
-        f"Particle swarm (seed settings: {pso['particles']} particles, stop at {pso['stop_pct']} %): "
-        f"{pso['iterations']} iterations, {pso['evaluations']} evaluations in {pso['wall_s']:.0f} s "
-        f"({pso['evaluations_per_s']:.0f}/s) to {pso['best_full_pct']:.3g} % on the full model; after the CasADi "
-        f"refinement {cal.max_error_pct:.2g} %. Identifiability: {cal.identifiability['summary']}.",
+        f"Particle swarm (seed settings: {pso['particles']} particles, stop at {pso['stop_pct']} %"
+        f"{_swarm_split(pso)}): {pso['evaluations']} evaluations in {pso['wall_s']:.0f} s "
+        f"({pso['evaluations_per_s']:.0f}/s); the chosen swarm's best, after {pso['iterations']} iterations, "
+        f"{pso['best_full_pct']:.3g} % on the full model; after the CasADi refinement {cal.max_error_pct:.2g} %. "
+        f"Identifiability: {cal.identifiability['summary']}.",
         "",
         "| parameter | calibrated | truth | difference |",
         "|---|---|---|---|",
@@ -274,6 +275,17 @@ def _shaker_report(s: dict) -> str:
         "",
         _diagnosis_report(s["diagnosis"], "### Diagnosis of the shaker test (`railcal diagnose`)"),
     ])
+
+
+def _swarm_split(pso: dict) -> str:
+    """How the particles ran: in independent swarms, each refined as it ended (the search
+    stops once one ends within ``done_pct``), or as the seed's single swarm."""
+    runs = pso.get("swarms")
+    if not runs:
+        return ""
+    ends = ", ".join(f"{r['end_max_error_pct']:.2g} %{' (chosen)' if r['chosen'] else ''}" for r in runs)
+    return (f", as independent swarms of {runs[0]['particles']} until one refines to {pso['done_pct']:g} %: "
+            f"{len(runs)} ran, each refined to {ends}")
 
 
 def _report(truth: dict, result, png_name: str, calibration, validation) -> str:
