@@ -32,11 +32,12 @@ PAPER_STOP_PCT = 0.5  # RTRI seed: stop when the evaluation function reaches 0.5
 #: stopped at 0.488 % and refined to 0.0045 % before the identification's clustering
 #: change, and after it (targets moved by up to 0.001 Hz) ran all 1000 iterations to
 #: 0.541 %, floor membrane and three joints on their limits, every refinement round refused;
-#: four swarms of 250 stopped the first at 0.485 % in that same basin.
+#: in swarms of 250 the first stopped at 0.485 % in that same basin (its refinement refused
+#: too), the second at 0.480 % elsewhere, refined to 0.0028 %.
 CAMPAIGN_SWARMS = 4
 #: ... the refined fit that ends the search: the identified frequencies are within
-#: 0.03-0.07 % of the truth (synthetic seeds 1-3), and the model family holds the truth, so
-#: a fit at the measurements' resolution exists; 0.1 % is twice that resolution.
+#: 0.03-0.07 % of the truth (synthetic seeds 1-3) and the model family holds the truth, so a
+#: fit at the identification's resolution exists; 0.1 % is about twice that resolution.
 CAMPAIGN_DONE_PCT = 0.1
 
 

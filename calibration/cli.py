@@ -245,7 +245,7 @@ def _calibrate_box(args) -> int:
     print(f"pso {pso['particles']} x {pso['iterations']} iterations{split} over {len(pso['factors'])} of the "
           f"{len(result.parameters)} {result.factor_set} factors ({pso['evaluations_per_s']:.0f} evaluations/s): "
           f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
-          f"{result.max_error_pct:.2g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}"
+          f"{result.max_error_pct:.3g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}"
           f"{_unsound(result.fit)}; {result.identifiability['summary']}; wrote {args.out}")
     return EXIT_OK
 

@@ -260,7 +260,7 @@ def _shaker_report(s: dict) -> str:
         f"Particle swarm (seed settings: {pso['particles']} particles, stop at {pso['stop_pct']} %"
         f"{_swarm_split(pso)}): {pso['evaluations']} evaluations in {pso['wall_s']:.0f} s "
         f"({pso['evaluations_per_s']:.0f}/s); the chosen swarm's best, after {pso['iterations']} iterations, "
-        f"{pso['best_full_pct']:.3g} % on the full model; after the CasADi refinement {cal.max_error_pct:.2g} %. "
+        f"{pso['best_full_pct']:.3g} % on the full model; after the CasADi refinement {cal.max_error_pct:.3g} %. "
         f"Identifiability: {cal.identifiability['summary']}.",
         "",
         "| parameter | calibrated | truth | difference |",
