@@ -15,6 +15,7 @@ from pathlib import Path
 from .data.campaign import open_campaign, write_json_atomic
 from .data.errors import InputError
 from .models.parameters import CAR_PARAMETER_SPECS, ParameterError
+from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
 
@@ -212,7 +213,7 @@ def cmd_calibrate(args) -> int:
 
 
 def _calibrate_box(args) -> int:
-    from .calibrate_box import CAMPAIGN_SWARMS, calibrate_box_campaign
+    from .calibrate_box import calibrate_box_campaign
     from .optimisers.pso import PSOSettings
 
     if args.method != "pso":
@@ -495,8 +496,6 @@ def _crosscheck_box(calibration: dict, args) -> int:
 
 # ------------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
-    from .calibrate_box import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
-
     p = _Parser(prog="railcal", description="Calibrate railway vehicle vibration models from measured data.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
