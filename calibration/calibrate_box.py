@@ -174,8 +174,8 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                "rebuilds": fit.rebuilds - rebuilds, "p": best, "refinement": None, "fit": fit}
         runs.append(run)
         if refine:
-            _refine_swarm_best(run, fit, polish_fit, low, high, names, staged, min_mac=min_mac,
-                               rounds=refine_rounds, polish_steps=polish_steps, progress=progress, tag=tag)
+            _refine_swarm_best(run, fit, polish_fit, low, high, names, rounds=refine_rounds,
+                               polish_steps=polish_steps, progress=progress, tag=tag)
         end = run["check"]["max_error_pct"] if run["refinement"] is None else run["refinement"]["end_max_error_pct"]
         run["end"] = end
         if progress and swarms > 1:
@@ -215,11 +215,12 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                           {q.name: [q.low, q.high] for q in search}, set_name)
 
 
-def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, high, names, staged: int, *,
-                       min_mac: float, rounds: int, polish_steps: int, progress, tag: str) -> None:
+def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, high, names, *, rounds: int,
+                       polish_steps: int, progress, tag: str) -> None:
     """One swarm's best, refined on the reduced model (CasADi) and, with ``polish_steps``,
-    polished on the full model (``polish_fit``: with the set's staged factors); sets the
-    run's ``p``, ``refinement`` and ``fit``."""
+    polished on the full model: on ``fit``, or on ``polish_fit`` where the set stages
+    factors for the polish (``names`` beyond ``fit``'s, joining nominal); sets the run's
+    ``p``, ``refinement`` and ``fit``."""
     d = len(fit.model.names)
     if progress:
         progress(f"{tag}refining on the reduced model in rounds, checked on the full model (CasADi/IPOPT)")
@@ -228,13 +229,13 @@ def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, h
                   "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
     p = r.parameters
     if polish_steps > 0:
-        if staged:
+        if polish_fit is not None:
             run["fit"] = polish_fit
-            p = np.r_[p, np.ones(staged)]
+            p = np.r_[p, np.ones(len(names) - d)]
             polish_fit.rebuild(p)
         if progress:
             progress(f"polishing {len(names)} factors on the full model "
-                     f"(sequential LP{', MAC floor kept' if min_mac > 0 else ''})")
+                     f"(sequential LP{', MAC floor kept' if fit.min_mac > 0 else ''})")
         pol = polish_box(run["fit"], p, low, high, steps=polish_steps, progress=progress)
         refinement["polish"] = {"steps": pol.rounds, "kept": pol.statuses.count("kept"),
                                 "statuses": list(pol.statuses), "factors": list(names),

@@ -143,11 +143,10 @@ def test_lscf_on_noisy_h1_finds_frequencies_within_half_a_percent_and_shapes(sha
     assert fit.relative_error.max() < 0.1
 
 
-# Round-off used to decide whether the pair's upper mode was kept: with the clustering's
-# frequency tolerance fixed at 0.2 % and MAC 0.9, on an AMD EPYC machine (OpenBLAS, one
-# thread) its cluster held poles of 7 of the 21 orders, short of the 9 (40 %) a mode needs,
-# and the test was an xfail then. With the tolerance scaled by the poles' damping and MAC 0.8
-# (ShakerSettings) the pair's clusters hold 11 and 10 orders there, so a dropped mode fails.
+# The pair's clusters hold poles of 11 and 10 of the 21 orders (9, 40 %, make a mode) on an
+# AMD EPYC machine (OpenBLAS, one thread), with the frequency tolerance scaled by the poles'
+# damping and MAC 0.8 (ShakerSettings); at a fixed 0.2 % and MAC 0.9 the upper mode's held 7
+# and round-off decided whether it was kept.
 def test_a_pair_a_seventh_of_its_bandwidth_apart_is_kept_apart_by_shape():
     """Two modes 0.35 % apart with 1.3-1.4 % damping (modal overlap 7, as a box carbody's
     torsion and lateral-vertical modes can fall): under noise their poles wander in damping
