@@ -12,7 +12,8 @@ import sys
 import traceback
 from pathlib import Path
 
-from .data.campaign import open_campaign, write_json_atomic
+from .data.campaign import open_campaign
+from .data.outputs import write_json_atomic
 from .data.errors import InputError
 from .models.parameters import CAR_PARAMETER_SPECS, ParameterError
 from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS

@@ -26,7 +26,8 @@ import numpy as np
 
 from .calibrate import calibrate_car, mode_uncertainties, search_from_priors
 from .calibrate_box import calibrate_box_campaign
-from .data.campaign import open_campaign, write_json_atomic
+from .data.campaign import open_campaign
+from .data.outputs import write_json_atomic
 from .frf_compare import compare_frf, plot_frf_comparison
 from .identification.excitation import write_identification
 from .models.box.fit import mac_matrix

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor
+from calibration.data.campaign import CampaignMeta, Prior, Sensor
+from calibration.data.outputs import CampaignWriter
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
 

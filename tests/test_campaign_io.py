@@ -17,7 +17,8 @@ import pytest
 import tomli_w
 
 from calibration.cli import main
-from calibration.data.campaign import CampaignWriter, open_campaign
+from calibration.data.campaign import open_campaign
+from calibration.data.outputs import CampaignWriter
 from calibration.data.errors import CampaignError
 from calibration.data.units import STANDARD_GRAVITY
 

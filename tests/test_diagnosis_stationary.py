@@ -13,7 +13,8 @@ import scipy.sparse.linalg
 from conftest import COARSE_BOX_ORDERS
 
 from calibration.cli import main
-from calibration.data.campaign import CampaignMeta, CampaignWriter, Excitation, Prior, open_campaign
+from calibration.data.campaign import CampaignMeta, Excitation, Prior, open_campaign
+from calibration.data.outputs import CampaignWriter
 from calibration.data.errors import InputError
 from calibration.diagnosis.stationary import (EXTENSIONS, Operators, Reduced, Stiffness, StationarySettings, _alarms,
                                               _panel_model, diagnose_stationary, equipment_accelerance,

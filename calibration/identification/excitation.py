@@ -152,7 +152,7 @@ def write_identification(result: ShakerIdentification, out, plot=None) -> dict:
     ``plot`` (default: beside ``out``) and the auto-MAC beside it; returns the JSON."""
     from pathlib import Path
 
-    from ..data.campaign import write_json_atomic
+    from ..data.outputs import write_json_atomic
 
     data = result.to_json()
     png = Path(plot) if plot else Path(out).with_suffix(".png")

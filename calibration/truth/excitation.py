@@ -86,7 +86,8 @@ import scipy.optimize
 import scipy.signal
 import scipy.sparse.linalg
 
-from ..data.campaign import CampaignMeta, CampaignWriter, Excitation, Prior, Sensor, write_json_atomic
+from ..data.campaign import CampaignMeta, Excitation, Prior, Sensor
+from ..data.outputs import CampaignWriter, write_json_atomic
 from ..models.box import SEARCH_PARAMETERS, BoxModel, assemble, shinkansen_vehicle
 from ..models.box.fit import mac_matrix, sensor_operator
 from ..models.box.reduced import full_modes

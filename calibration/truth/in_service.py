@@ -34,7 +34,8 @@ from pathlib import Path
 import numpy as np
 import scipy.signal
 
-from ..data.campaign import CampaignMeta, CampaignWriter, Prior, Sensor, write_json_atomic
+from ..data.campaign import CampaignMeta, Prior, Sensor
+from ..data.outputs import CampaignWriter, write_json_atomic
 from ..data.units import STANDARD_GRAVITY
 from ..models.assembly import Assembly, Attachment, Body, SpringDamper
 from ..models.car2d import (CarExtras, Output, build_car, damped_modes, frequencies_by_label, state_space,
