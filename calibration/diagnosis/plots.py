@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..identification.plots import save_figure  # noqa: E402
+from ..data.outputs import save_figure  # noqa: E402
 from .response import response_nrp  # noqa: E402
 from .track import fit_track, transmissibility2  # noqa: E402
 from .wheels import line_spectrum  # noqa: E402

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..identification.plots import save_figure  # noqa: E402
+from ..data.outputs import save_figure  # noqa: E402
 
 
 def plot_stationary_diagnosis(result: dict, stem, channels: int = 6) -> list[Path]:

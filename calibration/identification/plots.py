@@ -1,7 +1,6 @@
 """Figures of an in-service identification (read the result object; compute nothing new)."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import matplotlib
@@ -10,21 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..data.outputs import save_figure  # noqa: E402,F401  (the one saver; others import it from here too)
 from .in_service import InServiceIdentification  # noqa: E402
-
-def save_figure(fig, path) -> Path:
-    """Save atomically (temporary file, then rename), creating the folder; closes the figure."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
-    try:
-        fig.savefig(tmp, dpi=fig.dpi)
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        tmp.unlink(missing_ok=True)
-    return path
-
 
 _COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_bounce": "tab:green",
             "bogie_pitch": "tab:red"}
