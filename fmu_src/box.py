@@ -16,7 +16,8 @@ from calibration.calibrate_box import calibrated_box_model
 from calibration.models.box.reduction import ReducedVehicle, reduce_vehicle
 from calibration.truth.excitation import EXCITER, SENSOR_GRID
 
-from .variables import OUT_ACC, ModelSpec, Variable, _ordered, rail_inputs, standalone_variables
+from .variables import (OUT_ACC, ModelSpec, Variable, _ordered, default_track_start, rail_inputs,
+                        standalone_variables)
 
 DEFAULT_CUTOFF_HZ = 100.0
 DEFAULT_ZETA = 0.02
@@ -41,7 +42,8 @@ def data_header(r: ReducedVehicle) -> str:
         _array("BOX_WHEEL_X", r.wheelset_x), "#endif", ""])
 
 
-def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | None = None) -> tuple[Variable, ...]:
+def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | None = None,
+                  track_start: float = 0.0) -> tuple[Variable, ...]:
     v = [Variable("time", "Real", "independent", "continuous", "simulation time", "s"),
          Variable("zeta_carbody", "Real", "parameter", "tunable",
                   "damping ratio of the carbody's elastic modes (structural damping)", None, float(zeta))]
@@ -54,7 +56,7 @@ def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | Non
         v.append(Variable(name, "Real", "output", "continuous",
                           f"vertical floor acceleration at ({s.position[0]:+.2f}, {s.position[1]:+.2f}) m", "m/s2",
                           output=(OUT_ACC, -1, 0.0, k)))
-    v += standalone_variables(track_file)
+    v += standalone_variables(track_file, track_start)
     return _ordered(v)
 
 
@@ -77,7 +79,10 @@ def calibrated_damping(calibration: dict) -> float:
 def box_spec(calibration: dict, *, cutoff_hz: float = DEFAULT_CUTOFF_HZ, track=None,
              reduced: ReducedVehicle | None = None) -> ModelSpec:
     r = box_reduced(calibration, cutoff_hz) if reduced is None else reduced
-    variables = box_variables(r, calibrated_damping(calibration), track_file="track.csv" if track else None)
+    # BOX_WHEEL_X is written with repr(), so the C reads these offsets bit for bit
+    start = default_track_start(track, [float(x) for x in r.wheelset_x]) if track else 0.0
+    variables = box_variables(r, calibrated_damping(calibration), track_file="track.csv" if track else None,
+                              track_start=start)
     return ModelSpec("railcal_box", f"box-type vehicle (Shinkansen-type carbody: {r.n_modes} modes below "
                      f"{r.cutoff_hz:g} Hz and {r.M.shape[0] - 12 - r.n_modes} static-correction pseudo-modes; "
                      "rigid bogies; suspension) calibrated by railcal", "box", variables,

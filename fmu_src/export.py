@@ -17,7 +17,7 @@ from calibration.data.errors import InputError
 from calibration.models.parameters import CarParameters
 
 from .build import BuiltFMU, build_fmu
-from .variables import CAR_BODIES, car2d_spec
+from .variables import CAR_BODIES, TrackTooShort, car2d_spec
 
 
 def car_sensors(campaign, p: CarParameters) -> tuple:
@@ -53,11 +53,17 @@ def export_fmu(calibration: dict, fmi_version: int, out: Path, *, track: Path | 
         if model == "box":
             from .box import DEFAULT_CUTOFF_HZ, box_spec
 
-            spec = box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track_csv)
+            try:
+                spec = box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track_csv)
+            except TrackTooShort as e:
+                raise InputError(str(e), path=track) from None
             return build_fmu(spec, fmi_version, out, platforms=platforms)
         if cutoff_hz is not None:
             raise InputError("--cutoff-hz is for the box model", key="--cutoff-hz")
         p = CarParameters.from_mapping(params)  # names, finiteness and physical ranges checked here
         sensors = car_sensors(campaign, p) if campaign is not None else ()
-        return build_fmu(car2d_spec(p.as_dict(), track=track_csv, sensors=sensors), fmi_version, out,
-                         platforms=platforms)
+        try:
+            spec = car2d_spec(p.as_dict(), track=track_csv, sensors=sensors)
+        except TrackTooShort as e:
+            raise InputError(str(e), path=track) from None
+        return build_fmu(spec, fmi_version, out, platforms=platforms)

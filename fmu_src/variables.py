@@ -8,7 +8,9 @@ Value references are assigned in list order and unique across types (FMI 3 requi
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from pathlib import Path
 
 from calibration.models.car2d import RAIL_INPUTS
 from calibration.models.parameters import CAR_PARAMETER_SPECS
@@ -104,13 +106,41 @@ def rail_inputs() -> list[Variable]:
                               input_rate_of=rail, lti_input=True) for rail in RAIL_INPUTS]
 
 
-def standalone_variables(track_file: str | None) -> list[Variable]:
+class TrackTooShort(ValueError):
+    """The track profile to ship cannot hold every wheelset of the vehicle at once."""
+
+
+def default_track_start(track, wheelset_offsets) -> float:
+    """The carbody centre's track distance [m] that puts the rearmost wheelset on the first
+    point of the profile ``track`` (a track CSV), every wheelset on the profile.
+
+    ``wheelset_offsets``: [m] ahead of the carbody centre, computed as the FMU's C computes
+    them, so that ``start + offset`` lands on the profile in the FMU's own arithmetic.
+    :class:`TrackTooShort` when the profile is shorter than the wheelset span."""
+    from calibration.data.campaign import read_track_file
+
+    rec = read_track_file(Path(track))
+    first, last = float(rec.distance[0]), float(rec.distance[-1])
+    rear, front = float(min(wheelset_offsets)), float(max(wheelset_offsets))
+    start = first - rear
+    while start + rear < first:  # the subtraction may round down by an ulp
+        start = math.nextafter(start, math.inf)
+    if start + front > last:
+        raise TrackTooShort(f"the track profile covers {first:.3f}-{last:.3f} m, shorter than the vehicle's "
+                            f"wheelset span of {front - rear:.3f} m")
+    return start
+
+
+def standalone_variables(track_file: str | None, track_start: float = 0.0) -> list[Variable]:
     """Stand-alone running over a track profile: the speed input, the start position, the
-    switch (on by default when a track is shipped in resources/) and the profile file."""
+    switch (on by default when a track is shipped in resources/) and the profile file.
+    ``track_start``: the default start, :func:`default_track_start` of the shipped track."""
     return [
         Variable("speed", "Real", "input", "continuous", "vehicle speed in stand-alone running", "m/s", 0.0),
         Variable("track_start", "Real", "parameter", "fixed",
-                 "stand-alone: track distance of the carbody centre at the start time", "m", 0.0),
+                 "stand-alone: track distance of the carbody centre at the start time (default: the rearmost "
+                 "wheelset on the shipped profile's first point); running off either end of the profile is an "
+                 "error", "m", float(track_start)),
         Variable("standalone", "Boolean", "parameter", "fixed",
                  "run over track_file at the input speed instead of taking the rail inputs",
                  start=track_file is not None),
@@ -121,11 +151,11 @@ def standalone_variables(track_file: str | None) -> list[Variable]:
 
 
 def car2d_variables(parameters: dict[str, float], *, track_file: str | None = None,
-                    sensors: tuple = ()) -> tuple[Variable, ...]:
+                    sensors: tuple = (), track_start: float = 0.0) -> tuple[Variable, ...]:
     """The car FMU's variables: ``parameters`` (calibrated values, SI) become the tunable
     parameters' start values; ``sensors`` adds an acceleration output per calibrated sensor
     position, as (name, body, dx [m] from the body centre); ``track_file`` (a name in
-    resources/) makes stand-alone running the default."""
+    resources/) makes stand-alone running the default, from ``track_start`` [m]."""
     missing = sorted(set(CAR_PARAMETER_SPECS) - set(parameters))
     if missing:
         raise ValueError(f"the calibration lacks car parameter(s) {', '.join(missing)}")
@@ -147,16 +177,26 @@ def car2d_variables(parameters: dict[str, float], *, track_file: str | None = No
         v.append(Variable(f"sensor_{name}", "Real", "output", "continuous",
                           f"vertical acceleration at the calibrated sensor {name} ({body}, {dx:+.3f} m)", "m/s2",
                           output=(OUT_ACC, CAR_BODIES.index(body), float(dx), -1)))
-    v += standalone_variables(track_file)
+    v += standalone_variables(track_file, track_start)
     return _ordered(v)
 
 
+def car_wheelset_offsets(parameters: dict[str, float]) -> tuple[float, ...]:
+    """[m] of wheelsets 1..4 ahead of the carbody centre, as car2d/model.c's ``geometry``
+    computes them."""
+    Lv, Lb = float(parameters["L_v"]), float(parameters["L_b"])
+    return (Lv + Lb, Lv - Lb, -Lv + Lb, -Lv - Lb)
+
+
 def car2d_spec(parameters: dict[str, float], *, track: str | None = None, sensors: tuple = ()) -> ModelSpec:
-    """The car FMU; ``track``: a track profile CSV to ship in resources/ for stand-alone runs."""
+    """The car FMU; ``track``: a track profile CSV to ship in resources/ for stand-alone runs
+    (the default ``track_start`` puts the car on its start)."""
     from calibration.models.car2d import GRAVITY
 
     resources = {"track.csv": track} if track else {}
-    variables = car2d_variables(parameters, track_file="track.csv" if track else None, sensors=sensors)
+    start = default_track_start(track, car_wheelset_offsets(parameters)) if track else 0.0
+    variables = car2d_variables(parameters, track_file="track.csv" if track else None, sensors=sensors,
+                                track_start=start)
     return ModelSpec("railcal_car2d", "2D railway car (carbody, two bogies, four wheelsets on the rail), "
                      "calibrated by railcal", "car2d", variables, n_states=12, standalone=True,
                      defines={"MODEL_GRAVITY": repr(GRAVITY)}, resources=resources)

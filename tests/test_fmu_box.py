@@ -57,6 +57,30 @@ def test_the_box_fmu_validates_and_declares_rails_exciter_and_floor_acceleration
     assert v["zeta_carbody"].variability == "tunable"
 
 
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_with_its_defaults_the_box_fmu_stands_on_its_track_and_running_off_it_is_a_logged_error(box_fmus, reduced,
+                                                                                                 car_track, version):
+    """No start values: the last wheelset on the shipped profile's first point, standing
+    (speed 0, no exciter force), so the floor is at rest; past the profile's end the step
+    fails with a log naming the problem."""
+    _, built = box_fmus
+    distance = np.loadtxt(car_track[0], delimiter=",", skiprows=1)[:, 0]
+    md = fmpy.read_model_description(str(built[version].path))
+    start = float(next(v.start for v in md.modelVariables if v.name == "track_start"))
+    assert start + reduced.wheelset_x.min() == pytest.approx(distance[0], abs=1e-9)
+    messages = []
+
+    def log(*args):  # the message is the last argument in FMI 2 and 3
+        messages.append(args[-1].decode())
+
+    res = fmpy.simulate_fmu(str(built[version].path), stop_time=1.0, logger=log)
+    assert all(np.allclose(res[s.name], 0.0, atol=1e-9) for s in SENSOR_GRID), messages
+    with pytest.raises(Exception):
+        fmpy.simulate_fmu(str(built[version].path), stop_time=(distance[-1] - distance[0]) / SPEED + 1.0,
+                          step_size=1e-2, start_values={"speed": SPEED}, logger=log)
+    assert "runs off the track profile" in " ".join(messages), messages
+
 def drive(path, t, force, zeta=ZETA):
     """FMI 2 master loop: stand-alone over the track, the exciter force and its slope given
     at each communication point (the next point's after the step: feedthrough)."""

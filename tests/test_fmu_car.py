@@ -165,6 +165,61 @@ def test_variable_steps_and_rollback_reproduce_the_fixed_step_run(car_fmus):
     assert ref["contact_force_1"][0] == pytest.approx((CAR.m_v / 4 + CAR.m_b / 2 + CAR.m_w) * 9.80665)
 
 
+
+def _run_logged(path, **kw):
+    """fmpy.simulate_fmu with the FMU's log messages collected: (result or None, messages)."""
+    messages = []
+
+    def log(*args):  # FMI 2 passes the instance name too, FMI 3 does not; the message is last
+        messages.append(args[-1].decode())
+
+    try:
+        return fmpy.simulate_fmu(str(path), logger=log, **kw), messages
+    except Exception:
+        return None, messages
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_with_its_defaults_the_car_stands_on_its_track_and_running_off_it_is_a_logged_error(car_fmus, car_track,
+                                                                                             version):
+    """No start values at all: the default track_start puts the last wheelset on the shipped
+    profile's first point, the car stands there in static equilibrium (speed 0). Driven past
+    either end of the profile, the step fails with a log naming the input and the profile."""
+    from calibration.models.car2d import wheelset_positions
+
+    _, built = car_fmus
+    distance = np.loadtxt(car_track[0], delimiter=",", skiprows=1)[:, 0]
+    md = fmpy.read_model_description(str(built[version].path))
+    start = float(next(v.start for v in md.modelVariables if v.name == "track_start"))
+    assert start + wheelset_positions(CAR).min() == pytest.approx(distance[0], abs=1e-9)
+    res, log = _run_logged(built[version].path)
+    assert res is not None, log
+    static = (CAR.m_v / 4 + CAR.m_b / 2 + CAR.m_w) * 9.80665
+    for j in range(1, 5):
+        assert np.allclose(res[f"contact_force_{j}"], static, rtol=1e-9)
+    assert np.allclose(res["carbody_acc_z"], 0.0, atol=1e-9)
+    past_end = (distance[-1] - distance[0]) / SPEED + 1.0  # [s]
+    res, log = _run_logged(built[version].path, stop_time=past_end, start_values={"speed": SPEED})
+    assert res is None and "runs off the track profile" in " ".join(log) and "z_rail_1" in " ".join(log), log
+    res, log = _run_logged(built[version].path, stop_time=1.0, start_values={"speed": -1.0})
+    assert res is None and "z_rail_4" in " ".join(log) and "outside the profile" in " ".join(log), log
+
+
+def test_export_refuses_a_track_shorter_than_the_car(tmp_path, capsys):
+    import json
+
+    from calibration.cli import main
+
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"model": "car2d", "parameters": CAR.as_dict()}))
+    track = tmp_path / "short.csv"
+    track.write_text("distance,level\n100,0\n110,0.001\n")
+    assert main(["export-fmu", "--calibration", str(cal), "--track", str(track), "--out",
+                 str(tmp_path / "car.fmu")]) == 2
+    err = capsys.readouterr().err
+    assert "short.csv" in err and "wheelset span of 18.360 m" in err, err
+    assert not (tmp_path / "car.fmu").exists()
+
 # ------------------------------------------------------------------ bad calls
 
 def _slave(built, name="bad"):

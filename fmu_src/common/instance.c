@@ -214,9 +214,10 @@ static int track_inputs(Instance *inst, const RailInputs *rail, double position,
         const double at = position + rail->offset[j];
         if (!inst->track_loaded) return inst_error(inst, 1, "stand-alone: no track profile is loaded");
         if (track_eval(&inst->track, at, d, &inst->track_hint[j]) != 0)
-            return inst_error(inst, 1, "stand-alone: input %s needs the track at %.3f m, outside the profile "
-                              "%.3f-%.3f m", REAL_NAME[INPUT_VR[j]], at, inst->track.x[0],
-                              inst->track.x[inst->track.n - 1]);
+            return inst_error(inst, 1, "stand-alone: the vehicle runs off the track profile: with the carbody "
+                              "centre at %.3f m, input %s needs the track at %.3f m, outside the profile "
+                              "%.3f-%.3f m (set track_start, speed or the stop time to stay on it)", position,
+                              REAL_NAME[INPUT_VR[j]], at, inst->track.x[0], inst->track.x[inst->track.n - 1]);
         const double *e = d + (rail->kind[j] == 0 ? 0 : 1);
         const double vv = rail->kind[j] == 0 ? 1.0 : v;
         u[j] = vv * e[0];
