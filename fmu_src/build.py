@@ -20,6 +20,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+from calibration.data.outputs import write_atomic
+
 from .variables import UNITS, ModelSpec
 
 HERE = Path(__file__).resolve().parent
@@ -279,11 +281,14 @@ def build_fmu(spec: ModelSpec, fmi_version: int, out: Path, *, platforms: tuple[
             r.mkdir()
             for name, source in spec.resources.items():
                 shutil.copy(source, r / name)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        partial = out.with_name(out.name + ".partial")
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as z:
-            for f in sorted(tmp.rglob("*")):
-                if f.is_file():
-                    z.write(f, f.relative_to(tmp).as_posix())
-        partial.replace(out)
+
+        def pack(f):
+            with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as z:
+                for file in sorted(tmp.rglob("*")):
+                    if file.is_file():
+                        z.write(file, file.relative_to(tmp).as_posix())
+
+        # an unpredictable temporary name beside the target, renamed into place: no symlink
+        # planted at a guessable name is followed, and a failed build leaves no half FMU
+        write_atomic(out, pack)
     return BuiltFMU(out, fmi_version, tuple(platforms), guid)
