@@ -5,6 +5,9 @@ build (:mod:`reference_models.car2d`) against railcal's car model, and the time 
 over a track profile at a given speed, exudyn against railcal's exact response and against
 the car FMU (FMI 2, stand-alone over the same track in fmpy, 1 ms steps), as tables, an
 overlay plot and pass/fail against the tolerances below (issue 6).
+
+The verdict judges the physics only. The wall time is reported beside it, never judged: it
+depends on the machine and its load, not on whether the two computations agree.
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from fmu_src.reference import car_reference, nrmse, spline_profile
 
 from .car2d import OUTPUTS, RailInput, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
 
-TOLERANCES = {"undamped_rel": 1e-6, "damped_rel": 1e-4, "nrmse": 1e-3, "wall_s_per_10_s": 30.0}
+TOLERANCES = {"undamped_rel": 1e-6, "damped_rel": 1e-4, "nrmse": 1e-3}
 OUTPUT_INTERVAL = 1e-3  # [s]
 
 
@@ -86,15 +89,14 @@ def crosscheck_car(p: CarParameters, distance: np.ndarray, level: np.ndarray, *,
             row["fmu_vs_railcal"] = nrmse(fmu[n][:len(ref[n])], ref[n])
         worst = max(worst, *(v for k, v in row.items() if k != "rms"))
         rows[n] = row
-    wall_limit = TOLERANCES["wall_s_per_10_s"] * duration / 10.0
     report["time"] = {"speed_m_s": speed, "duration_s": duration, "start_m": start, "outputs": rows,
                       "worst_nrmse": worst, "tolerance": TOLERANCES["nrmse"],
-                      "wall_s_exudyn_and_reference": wall, "wall_limit_s": wall_limit,
-                      "pass": bool(worst <= TOLERANCES["nrmse"] and wall <= wall_limit)}
+                      "wall_s_exudyn_and_reference": wall, "pass": bool(worst <= TOLERANCES["nrmse"])}
     if plot is not None:
         report["plot"] = str(_plot(res, ref, fmu, plot))
     report["verdict"] = "pass" if all(report["eigen"][k]["pass"] for k in report["eigen"]) and \
         report["time"]["pass"] else "fail"
+    report["wall_time_s"] = wall  # reported, not judged
     return report
 
 
@@ -128,9 +130,8 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
     27 floor accelerations over the track (no exciter force), exudyn against railcal's exact
     response of the reduced vehicle and the box FMU. exudyn integrates at 2e-4 s (about 0.7 s of
     wall time per simulated second at full order); its carbody modal data (about 10 s) are
-    computed once for both exudyn systems. The time check's wall time counts them, exudyn's
-    items, static solution and integration, and railcal's exact response; its limit is
-    ``TOLERANCES["wall_s_per_10_s"]`` per 10 s simulated."""
+    computed once for both exudyn systems. The reported wall time counts them, exudyn's
+    items, static solution and integration, and railcal's exact response; it is not judged."""
     from calibration.calibrate_box import calibrated_box_model
     from calibration.truth.excitation import EXCITER, SENSOR_GRID
     from fmu_src.box import box_reduced, box_spec, calibrated_damping
@@ -194,11 +195,11 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
         worst = max(worst, row["exudyn_vs_railcal"], row.get("exudyn_vs_fmu", 0.0))
         rows[name] = row
     limit = 1e-2
-    wall_limit = TOLERANCES["wall_s_per_10_s"] * duration / 10.0
     report["time"] = {"speed_m_s": speed, "duration_s": duration, "start_m": start, "outputs": rows,
                       "worst_nrmse": worst, "tolerance": limit, "wall_s_exudyn_and_reference": wall,
-                      "wall_limit_s": wall_limit, "exudyn_modes_s": t_modes, "exudyn_build_s": res.build_time,
+                      "exudyn_modes_s": t_modes, "exudyn_build_s": res.build_time,
                       "exudyn_integration_s": res.wall_time, "exudyn_integration_cpu_s": res.cpu_time,
-                      "railcal_reference_s": t_ref, "pass": bool(worst <= limit and wall <= wall_limit)}
+                      "railcal_reference_s": t_ref, "pass": bool(worst <= limit)}
     report["verdict"] = "pass" if report["eigen"]["pass"] and report["time"]["pass"] else "fail"
+    report["wall_time_s"] = wall  # reported, not judged
     return report
