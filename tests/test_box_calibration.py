@@ -184,22 +184,70 @@ def test_a_typed_target_counts_only_when_its_pairing_is_sound(model):
                                                           + 1000 * np.maximum(0.8 - check["mac"], 0)))
 
 
+class _Recorder:
+    """The fit, recording the full model's check at every point the polish evaluates."""
+
+    def __init__(self, fit):
+        self._fit, self.checks = fit, []
+
+    def __getattr__(self, name):
+        return getattr(self._fit, name)
+
+    def gradients(self, p, macs=True):
+        out = self._fit.gradients(p, macs=macs)
+        self.checks.append(out[0])
+        return out
+
+
+POLISH_HALVING_STEPS = 4
+
+
 def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
     """The sequential LP on the full model (exact frequency and MAC derivatives) moves
     three modes of a nominal model towards those of a perturbed one: every kept step lowers
-    the full model's error, and no MAC falls under the floor."""
+    the full model's error and keeps every MAC over the floor, every refused step would not
+    have, and the error halves within ``POLISH_HALVING_STEPS`` steps.
+
+    The targets are modes at least 1 % from their neighbours: a double or near-double
+    eigenvalue (this model has one at 10.27 Hz that no factor moves) has no shape of its own,
+    the eigensolver returns a round-off-dependent vector of its eigenspace, and so would the
+    target and its MAC be. Where the step count comes from: K = K0 + sum p_i K_i with every
+    K_i positive semi-definite, so d ln f / d ln p_i >= 0 and sums to at most 1/2; a step of
+    +-trust in log factors moves a frequency by at most trust / 2, and with the region at 2 %
+    growing by half per kept step, halving a start error of about 5 % takes at least two
+    steps (1 % + 1.5 %). The minimax over three modes took three on every BLAS kernel tried;
+    the fourth is a spare for a refused step."""
     S = sensor_operator(model, SENSOR_GRID)
     p_true = np.exp(np.random.default_rng(1).uniform(-0.15, 0.15, len(model.names)))
     f, X = full_modes(model, p_true, 30)
-    ks = [k for k in range(30) if 8 < f[k] < 20][:3]
+    gap = np.array([np.min(np.abs(np.delete(f, k) - f[k])) / f[k] for k in range(f.size)])
+    ks = [k for k in range(f.size) if 8 < f[k] < 20 and gap[k] > 0.01][:3]
+    assert len(ks) == 3
     fit = BoxFit(model, S, tuple(ModeTarget(f"m{k}", float(f[k]), S @ X[:, k]) for k in ks), min_mac=0.8)
     p0 = np.ones(len(model.names))
     fit.rebuild(p0)
-    r = polish_box(fit, p0, np.full(p0.size, 0.5), np.full(p0.size, 2.0), steps=2, trust=0.02)
-    assert r.start_max_error_pct > 2.0
-    assert r.statuses == ("kept", "kept") and r.max_error_pct < 0.5 * r.start_max_error_pct
+    start, G, _ = fit.gradients(p0)
+    ratio = start["frequency_hz"] / fit.f_target
+    assert np.all(G >= -1e-12) and np.all(G.sum(axis=1) <= 0.5 * ratio * (1 + 1e-9))
+    assert start["max_error_pct"] > 2.0 and np.all(start["mac"] >= fit.min_mac)
+
+    rec = _Recorder(fit)
+    r = polish_box(rec, p0, np.full(p0.size, 0.5), np.full(p0.size, 2.0), steps=POLISH_HALVING_STEPS, trust=0.02)
+    trials = iter(rec.checks[1:])
+    best = start["max_error_pct"]
+    for status in r.statuses:
+        if status == "no step keeps the MAC floor":
+            continue
+        trial = next(trials)
+        lowers = trial["max_error_pct"] < best
+        assert (status == "kept") == (lowers and trial["sound"].all()), (status, trial["max_error_pct"], best)
+        if status == "kept":
+            assert np.all(trial["mac"] >= fit.min_mac)
+            best = trial["max_error_pct"]
+    assert r.max_error_pct == best and r.start_max_error_pct == start["max_error_pct"]
+    assert r.max_error_pct < 0.5 * r.start_max_error_pct
     check = fit.full_check(r.parameters)
-    assert check["max_error_pct"] == pytest.approx(r.max_error_pct) and np.all(check["mac"] >= 0.8)
+    assert check["max_error_pct"] == pytest.approx(r.max_error_pct) and np.all(check["mac"] >= fit.min_mac)
 
 
 def test_the_mac_derivatives_are_those_of_the_full_model(model):
