@@ -1,0 +1,65 @@
+"""The README's tour runs as written.
+
+Every ``sh`` code block of README.md is a command a user will paste. The blocks under one
+``###`` heading of the tour build on each other (a campaign, then its identification, ...),
+so each section runs in a fresh folder of its own, block after block, line after line, with
+the ``railcal`` of this environment first on the PATH. A command that exits non-zero, or
+does not write the files its ``--out`` names, fails the test.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+BLOCK = re.compile(r"^```sh\n(.*?)^```", re.S | re.M)
+
+
+def _sections() -> dict[str, list[str]]:
+    """The ``sh`` blocks' command lines, grouped by the ``###`` heading they stand under."""
+    text = README.read_text()
+    sections: dict[str, list[str]] = {}
+    heads = [(m.start(), m.group(1).strip()) for m in re.finditer(r"^###? (.+)$", text, re.M)]
+    for m in BLOCK.finditer(text):
+        head = [h for pos, h in heads if pos < m.start()][-1]
+        lines = [ln.split("  #")[0].strip() for ln in m.group(1).splitlines()]
+        sections.setdefault(head, []).extend(ln for ln in lines if ln and not ln.startswith("#"))
+    return sections
+
+
+SECTIONS = _sections()
+
+
+def test_the_readme_has_a_tour_and_stays_a_guide():
+    """A guide of about 200 lines whose tour covers both kinds of campaign."""
+    text = README.read_text()
+    assert len(text.splitlines()) <= 210
+    commands = [c for lines in SECTIONS.values() for c in lines]
+    for verb in ("synth in-service", "synth excitation", "identify", "calibrate", "validate", "diagnose",
+                 "export-fmu", "crosscheck", "modes"):
+        assert any(c.startswith(f"railcal {verb}") for c in commands), verb
+    assert not re.search(r"\bcommit [0-9a-f]{7,40}\b", text), "history belongs in docs/CHANGELOG.md"
+    assert "in progress" not in text
+
+
+@pytest.mark.slow
+@pytest.mark.spread
+@pytest.mark.parametrize("section", list(SECTIONS))
+def test_the_tour_runs_as_written(section, tmp_path):
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
+    for line in SECTIONS[section]:
+        argv = shlex.split(line)
+        assert argv[0] == "railcal", f"the tour runs railcal commands only: {line!r}"
+        done = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, f"{line!r} exited {done.returncode}:\n{done.stderr[-3000:]}"
+        assert done.stdout.strip(), f"{line!r} printed no summary"
+        if "--out" in argv:
+            out = tmp_path / argv[argv.index("--out") + 1]
+            assert out.exists(), f"{line!r} did not write {out.name}"
+            assert out.name in done.stdout, f"{line!r}: the summary does not name {out.name}"
