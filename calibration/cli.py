@@ -150,29 +150,62 @@ def _parse_params(items) -> dict[str, float]:
 
 
 def cmd_modes(args) -> int:
-    from .models.car2d import build_car, damped_modes, undamped_modes
-    from .models.vehicles import VEHICLES
+    """Eigen-analysis of a model: every mode with a unique ``label`` and its spec v1
+    ``family`` (``bogie_bounce_in_phase`` and ``bogie_bounce_anti_phase`` are both of
+    family ``bogie_bounce``)."""
+    from .data.outputs import check_outputs, write_result
 
-    if args.model != "car2d":
-        raise InputError(f"model {args.model!r} is not available yet; have: car2d", key="--model")
-    p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
-    asm = build_car(p)
-    und = undamped_modes(asm)
-    unpaired = list(damped_modes(asm))
-    modes = []
-    for m in und:  # pair each undamped mode with the nearest damped mode of the same label
-        same = [d for d in unpaired if d.label == m.label]
-        d = min(same, key=lambda d: abs(d.frequency_hz - m.frequency_hz)) if same else None
-        if d is not None:
-            unpaired.remove(d)
-        modes.append({"label": m.label, "frequency_hz": m.frequency_hz,
-                      "damping_ratio": None if d is None else d.damping_ratio,
-                      "damped_frequency_hz": None if d is None else d.damped_frequency_hz})
+    if args.model not in ("car2d", "box"):
+        raise InputError(f"unknown model {args.model!r}; have: car2d, box", key="--model")
     if args.out:
-        write_json_atomic(args.out, {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(),
-                                     "modes": modes})
-    print("; ".join(f"{m['label']} {m['frequency_hz']:.3f} Hz" for m in modes))
+        check_outputs([args.out])
+    if args.model == "box":
+        out = _box_modes(args)
+    else:
+        from .models.car2d import build_car, damped_modes, undamped_modes
+        from .models.vehicles import VEHICLES
+
+        p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
+        asm = build_car(p)
+        damped = {m.name: m for m in damped_modes(asm)}
+        modes = []
+        for m in undamped_modes(asm):  # both analyses name a mode by its shape alike
+            d = damped.get(m.name)
+            modes.append({"label": m.name, "family": m.label, "frequency_hz": m.frequency_hz,
+                          "damping_ratio": None if d is None else d.damping_ratio,
+                          "damped_frequency_hz": None if d is None else d.damped_frequency_hz})
+        out = {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(), "modes": modes}
+    if args.out:
+        write_result(args.out, out, "modes")
+    print("; ".join(f"{m['label']} {m['frequency_hz']:.3f} Hz" for m in out["modes"]))
     return EXIT_OK
+
+
+def _box_modes(args) -> dict:
+    """``railcal modes --model box``: the box-type vehicle (default factor set) with
+    ``--param NAME=FACTOR`` stiffness factors."""
+    from .calibrate_box import calibrated_box_model
+    from .models.vehicles import box_modes
+
+    factors = {}
+    for item in args.param or []:
+        name, sep, value = item.partition("=")
+        try:
+            factors[name] = float(value) if sep else None
+        except ValueError:
+            raise InputError(f"value of {name} is not a number: {value!r}", key="--param") from None
+        if factors[name] is None:
+            raise InputError(f"expected NAME=FACTOR, got {item!r}", key="--param")
+    if not args.max_hz > 0:
+        raise InputError(f"--max-hz must be positive, got {args.max_hz:g}", key="--max-hz")
+    try:
+        model, p = calibrated_box_model({"model": "box", "parameters": factors})
+    except InputError as e:  # it names the calibration file's key; here the factors come from --param
+        raise InputError(str(e).replace("key 'parameters': ", ""), key="--param") from None
+    modes = box_modes(model, p, max_hz=args.max_hz)
+    return {"model": "box", "parameters": p, "max_hz": args.max_hz,
+            "modes": [{"label": m.label, "family": m.family, "frequency_hz": m.frequency_hz,
+                       "damping_ratio": m.damping_ratio, "kind": m.kind} for m in modes]}
 
 
 # -------------------------------------------------------------------------- calibrate
@@ -532,10 +565,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_identify)
 
     s = sub.add_parser("modes", help="eigen-analysis of a model")
-    s.add_argument("--model", default="car2d")
+    s.add_argument("--model", choices=("car2d", "box"), default="car2d",
+                   help="model to analyse: the 2D car or the box-type vehicle (Shinkansen-type carbody)")
     s.add_argument("--vehicle", choices=("intercity", "manchester"), default="intercity",
                    help="base parameter set: the seed's intercity trailer or the Manchester benchmark coach")
     s.add_argument("--param", action="append", metavar="NAME=VALUE")
+    s.add_argument("--max-hz", type=float, default=25.0, help="box model: modes below this [Hz]")
     s.add_argument("--out", default=None)
     s.set_defaults(func=cmd_modes)
 

@@ -16,7 +16,7 @@ Wheelset 1 leads: bogie 1 sits at x = +L_v, wheelset 1 at x = L_v + L_b.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
@@ -130,16 +130,37 @@ _GROUPS = {
 }
 
 
+# Families whose modes come one per bogie (both bogies share m_b, J_b): the coordinate of
+# each bogie that tells the pair's members apart by their relative sign.
+PAIRED_FAMILIES = {"bogie_bounce": ("bogie1_z", "bogie2_z"), "bogie_pitch": ("bogie1_pitch", "bogie2_pitch")}
+DEGENERATE_RTOL = 1e-6  # modes of one family closer than this (relative) span one eigenspace
+LOCALISED_RATIO = 1 / 3  # a bogie moving less than this x the other (energy < 10 %) is at rest
+
+
 @dataclass(frozen=True)
 class Mode:
-    """One vibration mode: label from its kinetic-energy distribution over the DOFs."""
+    """One vibration mode.
+
+    ``label`` is the mode's family of ``shared/spec/interfaces.md`` v1 (``bogie_bounce``,
+    ...), from its kinetic-energy distribution over the DOFs; the two members of a bogie pair
+    share it, and calibration targets and identification match on it. ``name`` is unique
+    within one analysis (``railcal modes`` prints it as the label, the family beside it):
+    the family label, or for a bogie pair ``<family>_in_phase`` / ``<family>_anti_phase``
+    (both bogies moving in the same / opposite sense) or ``bogie1_bounce``, ``bogie2_pitch``,
+    ... when one bogie alone moves (an asymmetric car); any remaining repeat gets ``_1``,
+    ``_2``, ... in frequency order."""
 
     label: str
     frequency_hz: float  # undamped natural frequency [Hz]
     damped_frequency_hz: float | None  # [Hz]; None when overdamped or undamped analysis
     damping_ratio: float | None
-    shape: np.ndarray  # real (undamped) mode shape over the assembly DOFs, mass-normalised
+    shape: np.ndarray  # mode shape over the assembly DOFs (undamped: real, mass-normalised)
     energy: dict  # kinetic-energy fraction per DOF
+    name: str = ""  # unique label (see above); :func:`undamped_modes` and :func:`damped_modes` set it
+
+    @property
+    def family(self) -> str:
+        return self.label
 
 
 def _label(asm: Assembly, shape: np.ndarray) -> tuple[str, dict]:
@@ -147,26 +168,79 @@ def _label(asm: Assembly, shape: np.ndarray) -> tuple[str, dict]:
     ke = ke / ke.sum()
     energy = {d: float(e) for d, e in zip(asm.dofs, ke)}
     scores = {g: sum(energy.get(d, 0.0) for d in dofs) for g, dofs in _GROUPS.items()}
-    best = max(scores, key=scores.get)
-    # Both bogies share m_b, J_b here, so bogie modes come as symmetric/antisymmetric
-    # (or degenerate) pairs under one label; per-bogie labels (bogie1_bounce, ...)
-    # belong with per-bogie parameters (m_b_1, ...), which this model does not have yet.
-    return best, energy
+    return max(scores, key=scores.get), energy
+
+
+def _symmetric_basis(asm: Assembly, shapes: list[np.ndarray], family: str, mass_normalise: bool) -> list[np.ndarray]:
+    """Two shapes spanning one (degenerate) eigenspace of a bogie pair, recombined into the
+    in-phase and the anti-phase member: any basis of the space is an eigenbasis, and the
+    solver's choice is round-off; this one is fixed by the physics."""
+    i1, i2 = (asm.dofs.index(d) for d in PAIRED_FAMILIES[family])
+    Q = np.array([[shapes[0][i1], shapes[1][i1]], [shapes[0][i2], shapes[1][i2]]])
+    if np.linalg.cond(Q) > 1e8:  # the space does not reach both bogies: leave it
+        return shapes
+    out = []
+    for target in ((1.0, 1.0), (1.0, -1.0)):
+        c = np.linalg.solve(Q, np.array(target, dtype=Q.dtype))
+        v = c[0] * shapes[0] + c[1] * shapes[1]
+        if mass_normalise:
+            v = np.real(v) / np.sqrt(np.real(v) @ asm.M @ np.real(v))
+        else:
+            v = v * (np.linalg.norm(shapes[0]) / np.linalg.norm(v))
+        out.append(v)
+    return out
+
+
+def _pair_name(asm: Assembly, family: str, shape: np.ndarray) -> str:
+    a1, a2 = (shape[asm.dofs.index(d)] for d in PAIRED_FAMILIES[family])
+    big, small = max(abs(a1), abs(a2)), min(abs(a1), abs(a2))
+    if small < LOCALISED_RATIO * big:
+        return f"bogie{1 if abs(a1) >= abs(a2) else 2}_{family.split('_', 1)[1]}"
+    return f"{family}_{'in_phase' if np.real(a1 * np.conj(a2)) > 0 else 'anti_phase'}"
+
+
+def _named(asm: Assembly, modes: list[Mode], *, mass_normalise: bool) -> list[Mode]:
+    """``modes`` (ascending frequency) with unique names; a degenerate bogie pair's shapes
+    recombined into its in-phase and anti-phase members first."""
+    modes = list(modes)
+    for family in PAIRED_FAMILIES:
+        if not all(d in asm.dofs for d in PAIRED_FAMILIES[family]):
+            continue
+        idx = [k for k, m in enumerate(modes) if m.label == family]
+        for a, b in zip(idx, idx[1:]):
+            fa, fb = modes[a].frequency_hz, modes[b].frequency_hz
+            if abs(fb - fa) <= DEGENERATE_RTOL * max(fa, fb):
+                sa, sb = _symmetric_basis(asm, [modes[a].shape, modes[b].shape], family, mass_normalise)
+                modes[a] = replace(modes[a], shape=sa, energy=_label(asm, sa)[1])
+                modes[b] = replace(modes[b], shape=sb, energy=_label(asm, sb)[1])
+    names = [_pair_name(asm, m.label, m.shape) if m.label in PAIRED_FAMILIES and
+             all(d in asm.dofs for d in PAIRED_FAMILIES[m.label]) else m.label for m in modes]
+    count: dict[str, int] = {}
+    for n in names:
+        count[n] = count.get(n, 0) + 1
+    seen: dict[str, int] = {}
+    for k, n in enumerate(names):
+        if count[n] > 1:
+            seen[n] = seen.get(n, 0) + 1
+            names[k] = f"{n}_{seen[n]}"
+    return [replace(m, name=n) for m, n in zip(modes, names)]
 
 
 def undamped_modes(asm: Assembly) -> list[Mode]:
-    """Undamped modes (K phi = w^2 M phi), ascending frequency, labelled by shape."""
+    """Undamped modes (K phi = w^2 M phi), ascending frequency, labelled by shape and
+    uniquely named (:class:`Mode`)."""
     w2, phi = scipy.linalg.eigh(asm.K, asm.M)
     modes = []
     for i in range(len(w2)):
         f = float(np.sqrt(max(w2[i], 0.0)) / (2 * np.pi))
         label, energy = _label(asm, phi[:, i])
         modes.append(Mode(label, f, None, None, phi[:, i], energy))
-    return modes
+    return _named(asm, modes, mass_normalise=True)
 
 
 def damped_modes(asm: Assembly) -> list[Mode]:
-    """Damped modes from the state-space eigenproblem; one per conjugate pair (or real root)."""
+    """Damped modes from the state-space eigenproblem; one per conjugate pair (or real root),
+    ascending natural frequency, labelled and named like :func:`undamped_modes`."""
     A = state_matrix(asm)
     lam, vec = scipy.linalg.eig(A)
     n = len(asm.dofs)
@@ -185,7 +259,7 @@ def damped_modes(asm: Assembly) -> list[Mode]:
         label, energy = _label(asm, shape)
         fd = float(abs(lam[i].imag) / (2 * np.pi)) if abs(lam[i].imag) > 1e-12 else None
         modes.append(Mode(label, float(wn / (2 * np.pi)), fd, zeta, shape, energy))
-    return modes
+    return _named(asm, modes, mass_normalise=False)
 
 
 def frequencies_by_label(modes: list[Mode]) -> dict[str, float]:

@@ -34,6 +34,8 @@ and 11.68 Hz.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.optimize
 
@@ -110,3 +112,138 @@ MANCHESTER_BENCHMARK = CarParameters(
 SEED_TABLE2_MANCHESTER = {"carbody_bounce": 1.07, "carbody_pitch": 1.28, "bogie_bounce": 7.47, "bogie_pitch": 11.68}
 
 VEHICLES = {"intercity": INTERCITY_TRAILER, "manchester": MANCHESTER_BENCHMARK}
+
+
+# --------------------------------------------------------------------- the box-type vehicle
+BOX_MODES_MAX_HZ = 25.0  # [Hz] suspension modes and the carbody's first elastic modes
+_RIGID_NAMES = {"x": "longitudinal", "y": "lateral", "z": "bounce", "roll": "roll", "pitch": "pitch", "yaw": "yaw"}
+BOX_RIGID_SHARE = 0.9  # a carbody moving at least this rigidly (by the fit's energy) is on its suspension
+BOX_MIN_TYPE_MAC = 0.5  # an elastic mode below this MAC with every mode type is "carbody_elastic"
+
+
+@dataclass(frozen=True)
+class BoxMode:
+    """One mode of the box-type vehicle: ``label`` unique within the analysis, ``family``
+    its kind: ``carbody_<bounce|pitch|roll|lateral|yaw|longitudinal>`` on the suspension,
+    ``bogie_<motion>`` with ``_in_phase`` / ``_anti_phase`` members (or ``bogie1_...``
+    alone), or a carbody mode type of :data:`calibration.models.box.mode_types.MODE_TYPES`
+    (largest MAC of the floor's vertical motion with the type's pattern). Repeats get
+    ``_1``, ``_2``, ... in frequency order. ``damping_ratio``: the suspension dampers' modal
+    share (coupling between modes neglected); None for elastic modes, whose structural
+    damping the model does not hold."""
+
+    label: str
+    family: str
+    frequency_hz: float  # [Hz] undamped
+    damping_ratio: float | None
+    kind: str  # "carbody_rigid", "bogie" or "elastic"
+
+
+def _floor_and_roof_points(geometry):
+    L, W = geometry.length, geometry.width
+    floor = [(x, y, geometry.floor_z) for x in np.linspace(-0.45 * L, 0.45 * L, 9) for y in (-0.4 * W, 0.0, 0.4 * W)]
+    roof = [(x, y, geometry.roof_z) for x in np.linspace(-0.45 * L, 0.45 * L, 5) for y in (-0.4 * W, 0.4 * W)]
+    return floor, roof
+
+
+def _unique(names: list[str]) -> list[str]:
+    count = {n: names.count(n) for n in names}
+    seen: dict[str, int] = {}
+    out = []
+    for n in names:
+        if count[n] > 1:
+            seen[n] = seen.get(n, 0) + 1
+            n = f"{n}_{seen[n]}"
+        out.append(n)
+    return out
+
+
+def box_modes(model, parameters, *, max_hz: float = BOX_MODES_MAX_HZ) -> list[BoxMode]:
+    """Undamped modes below ``max_hz`` [Hz] of the assembled box-type vehicle ``model``
+    (:func:`calibration.models.box.assemble`) at stiffness factors ``parameters`` ({name:
+    factor}, missing ones 1), ascending, each labelled by its shape (:class:`BoxMode`)."""
+    import types
+
+    from .box.assembly import RIGID_DOFS
+    from .box.fit import carbody_mass
+    from .box.mode_types import MODE_TYPES, template
+    from .box.reduced import full_modes
+    from .box.shinkansen import Geometry, floor_panel
+
+    if not max_hz > 0:
+        raise ValueError(f"max_hz = {max_hz}; must be > 0")
+    p = np.array([float(parameters.get(n, 1.0)) for n in model.names])
+    n = min(40, model.n_dof - 2)
+    while True:
+        f, X = full_modes(model, p, n)
+        if f[-1] > max_hz or n >= model.n_dof - 2:
+            break
+        n = min(2 * n, model.n_dof - 2)
+    keep = f < max_hz
+    f, X = f[keep], X[:, keep]
+    geometry = Geometry()
+    floor, roof = _floor_and_roof_points(geometry)
+    D = np.vstack([model.displacement(floor_panel(x, geometry), (x, y, z)) for x, y, z in floor]
+                  + [model.displacement("roof", pt) for pt in roof])  # (3 n_points, n_dof)
+    R = np.vstack([np.hstack([np.eye(3), -np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])])
+                   for x, y, z in floor + roof])  # rigid motion (translation, rotation) at the points
+    floor_z = D[2:3 * len(floor):3]
+    sensors = [types.SimpleNamespace(position=pt) for pt in floor]
+    patterns = {t: template(t, sensors, geometry.length, geometry.width) for t in MODE_TYPES}
+    bogie_share = 1.0 - np.einsum("ij,ij->j", X, carbody_mass(model) @ X)
+    bogies = model.vehicle.bodies[:2]
+    common = [d for d in RIGID_DOFS if all(d not in rb.fixed for rb in bogies)]
+
+    def bogie_motion(x):
+        """The bogies' dominant common rigid DOF and the index of that DOF in each bogie's x."""
+        idx = [[model.dof_slices[rb.name].start + [d for d in RIGID_DOFS if d not in rb.fixed].index(d)
+                for rb in bogies] for d in common]
+        e = [sum(model.M[i, i] * x[i] ** 2 for i in ii) for ii in idx]
+        k = int(np.argmax(e))
+        return common[k], idx[k]
+
+    # A degenerate bogie pair (the bogies' pitch does not reach the carbody) has any basis of
+    # its eigenspace as modes; the solver's is round-off. Recombine it into the in-phase
+    # and the anti-phase member, M-normalised.
+    for k in range(f.size - 1):
+        if (len(bogies) == 2 and min(bogie_share[k], bogie_share[k + 1]) > 0.5
+                and abs(f[k + 1] - f[k]) <= 1e-6 * f[k + 1]):
+            _, (i1, i2) = bogie_motion(X[:, k])
+            pair = X[:, [k, k + 1]].copy()
+            Q = pair[[i1, i2]]
+            if np.linalg.cond(Q) < 1e8:
+                for col, target in ((k, (1.0, 1.0)), (k + 1, (1.0, -1.0))):
+                    v = pair @ np.linalg.solve(Q, np.array(target))
+                    X[:, col] = v / np.sqrt(v @ (model.M @ v))
+    zeta = np.einsum("ij,ij->j", X, model.C @ X) / (2 * 2 * np.pi * np.maximum(f, 1e-12))
+    families, kinds = [], []
+    for k in range(f.size):
+        x = X[:, k]
+        if bogie_share[k] > 0.5 and len(bogies) == 2:
+            d, (i1, i2) = bogie_motion(x)
+            a1, a2 = x[i1], x[i2]
+            motion = _RIGID_NAMES[d]
+            if min(abs(a1), abs(a2)) < (1 / 3) * max(abs(a1), abs(a2)):
+                families.append((f"bogie_{motion}", f"bogie{1 if abs(a1) >= abs(a2) else 2}_{motion}"))
+            else:
+                families.append((f"bogie_{motion}", f"bogie_{motion}_{'in_phase' if a1 * a2 > 0 else 'anti_phase'}"))
+            kinds.append("bogie")
+            continue
+        d = D @ x
+        theta = np.linalg.lstsq(R, d, rcond=None)[0]
+        if np.sum((R @ theta) ** 2) >= BOX_RIGID_SHARE * np.sum(d ** 2):
+            energy = [np.sum((R[:, j] * theta[j]) ** 2) for j in range(6)]
+            family = f"carbody_{_RIGID_NAMES[RIGID_DOFS[int(np.argmax(energy))]]}"
+            families.append((family, family))
+            kinds.append("carbody_rigid")
+            continue
+        w = floor_z @ x
+        mac = {t: float((pat @ w) ** 2 / ((pat @ pat) * (w @ w))) if w @ w > 0 else 0.0
+               for t, pat in patterns.items()}
+        best = max(mac, key=mac.get)
+        family = best if mac[best] >= BOX_MIN_TYPE_MAC else "carbody_elastic"
+        families.append((family, family))
+        kinds.append("elastic")
+    labels = _unique([name for _, name in families])
+    return [BoxMode(lb, fam, float(f[k]), None if kinds[k] == "elastic" else float(zeta[k]), kinds[k])
+            for k, (lb, (fam, _)) in enumerate(zip(labels, families))]
