@@ -5,7 +5,9 @@ file and the column, line or key, and no output file written.
 """
 from __future__ import annotations
 
+import os
 import re
+import signal
 import shutil
 import tomllib
 
@@ -354,3 +356,180 @@ def test_track_recording_with_a_single_row_is_refused(tiny_campaign):
     path.write_text('# band = "D1"\ndistance,level\n100.0,0.001\n')
     with pytest.raises(CampaignError, match="at least two rows"):
         read_track_file(path)
+
+
+# -------------------------------------------- issue 29: hostile and corrupted input
+def write_parquet_run(tmp_path, edit):
+    """A Parquet twin of the tiny campaign whose run table went through ``edit(table)``."""
+    root = tmp_path / "pq"
+    with CampaignWriter(root, tiny_meta(), fmt="parquet") as w:
+        w.write_run("run_a", tiny_columns())
+        w.commit()
+    path = root / "runs" / "run_a.parquet"
+    pq.write_table(edit(pq.read_table(path)), path)
+    return root
+
+
+@pytest.mark.parametrize("value", ["1" * 400, "9" * 5000])
+def test_huge_toml_integer_is_refused_naming_the_key(tiny_campaign, tmp_path, capsys, value):
+    replace_in_toml(tiny_campaign, "rate = 100.0", f"rate = {value}")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", r"sampling\.rate|line \d+")
+
+
+@pytest.mark.parametrize("nested", ["[" * 5000 + "]" * 5000, "{a = " * 3000 + "1" + "}" * 3000])
+def test_deeply_nested_toml_is_refused(tiny_campaign, tmp_path, capsys, nested):
+    toml = tiny_campaign / "campaign.toml"
+    toml.write_text(toml.read_text() + f"\nextra = {nested}\n")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", "nest")
+
+
+def test_scale_that_overflows_the_unit_conversion_is_refused(tiny_campaign, tmp_path, capsys):
+    replace_in_toml(tiny_campaign, "scale = 1.0", "scale = 1e308")  # x 9.81 for g: no finite factor
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sensors\[0\]\.scale'", "not finite")
+
+
+def test_sample_that_overflows_after_scale_names_line_and_column(tiny_campaign, tmp_path, capsys):
+    replace_in_toml(tiny_campaign, "scale = 1.0", "scale = 1e300")
+    set_cell(tiny_campaign, 17, 3, "1e10")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 18", r"column 'bogie1_acc_z'", "not finite")
+
+
+def test_infinite_sample_is_refused_not_taken_as_missing(tiny_campaign, tmp_path, capsys):
+    set_cell(tiny_campaign, 9, 4, "-inf")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 10", r"column 'bogie1_gyro_pitch'", "not finite")
+
+
+def test_fully_clipped_channel_is_refused_like_an_all_nan_one(tiny_campaign, tmp_path, capsys):
+    rewrite_run(tiny_campaign, lambda lines: [lines[0] + ",bogie1_acc_z_clipped", *[ln + ",1" for ln in lines[1:]]])
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", r"column 'bogie1_acc_z'", "no valid sample")
+
+
+def test_parquet_boolean_column_is_refused(tmp_path, capsys):
+    def to_bool(table):
+        i = table.column_names.index("bogie1_acc_z")
+        return table.set_column(i, "bogie1_acc_z", pa.array(np.arange(table.num_rows) % 2 == 0))
+    root = write_parquet_run(tmp_path, to_bool)
+    identify_rejects(root, tmp_path, capsys, r"run_a\.parquet", r"column 'bogie1_acc_z'", "bool")
+
+
+def test_parquet_timestamp_time_column_is_refused(tmp_path, capsys):
+    def to_timestamp(table):
+        stamps = pa.array((np.arange(table.num_rows) * 10).astype("datetime64[ms]"))
+        return table.set_column(table.column_names.index("time"), "time", stamps)
+    root = write_parquet_run(tmp_path, to_timestamp)
+    identify_rejects(root, tmp_path, capsys, r"run_a\.parquet", r"column 'time'", "timestamp")
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ("bogie_semi_spacing = 8.0", "bogie_semi_spacing = 1e6", "bogie_semi_spacing"),
+    ("bogie_semi_spacing = 8.0", "bogie_semi_spacing = -8.0", "bogie_semi_spacing"),
+    ("semi_wheelbase = 1.25", "semi_wheelbase = 0.0", "semi_wheelbase"),
+    ("semi_wheelbase = 1.25", "semi_wheelbase = 9.0", "semi_wheelbase"),
+])
+def test_implausible_geometry_is_refused_naming_the_key(tiny_campaign, tmp_path, capsys, old, new, key):
+    replace_in_toml(tiny_campaign, old, new)
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", rf"key 'vehicle\.{key}'")
+
+
+def test_semi_wheelbase_must_be_shorter_than_the_bogie_semi_spacing(tiny_campaign, tmp_path, capsys):
+    replace_in_toml(tiny_campaign, "bogie_semi_spacing = 8.0", "bogie_semi_spacing = 1.2")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'vehicle\.semi_wheelbase'", "below")
+
+
+@pytest.mark.parametrize("column, value, pattern", [
+    (2, "-3.0", "negative"),
+    (2, "1e6", "above"),
+    (1, "1e300", "distance"),
+])
+def test_implausible_speed_or_distance_is_refused(tiny_campaign, tmp_path, capsys, column, value, pattern):
+    set_cell(tiny_campaign, 50, column, value)
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", r"line 51", pattern)
+
+
+def test_missing_speed_without_distance_is_refused(tiny_campaign, tmp_path, capsys):
+    rewrite_run(tiny_campaign, lambda lines: [",".join(c for i, c in enumerate(ln.split(",")) if i != 1)
+                                              for ln in lines])
+    set_cell(tiny_campaign, 60, 1, "")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"line 61", r"column 'speed'", "missing")
+
+
+def test_time_steps_must_match_the_nominal_rate(tiny_campaign, tmp_path, capsys):
+    replace_in_toml(tiny_campaign, "rate = 100.0", "rate = 500.0")
+    err = identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sampling\.rate'", "time step")
+    assert "run_a.csv" in err
+
+
+def test_run_that_is_a_fifo_is_refused_at_once(tiny_campaign, tmp_path, capsys):
+    os.mkfifo(tiny_campaign / "runs" / "run_b.csv")  # reading it would block for ever
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_b\.csv", "not a regular file")
+
+
+def test_folder_named_like_a_run_is_refused(tiny_campaign, tmp_path, capsys):
+    (tiny_campaign / "runs" / "run_b.csv").mkdir()
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_b\.csv", "not a regular file")
+
+
+def test_run_linked_from_outside_the_campaign_is_refused_unless_allowed(tiny_campaign, tmp_path, capsys):
+    outside = tmp_path / "elsewhere.csv"
+    shutil.move(tiny_campaign / "runs" / "run_a.csv", outside)
+    (tiny_campaign / "runs" / "run_a.csv").symlink_to(outside)
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", "outside the campaign folder")
+    assert len(open_campaign(tiny_campaign, allow_outside=True).read_run("run_a")) == 400
+
+
+def test_link_to_a_device_is_refused(tiny_campaign, tmp_path, capsys):
+    (tiny_campaign / "runs" / "run_b.csv").symlink_to("/dev/zero")
+    with pytest.raises(CampaignError, match="not a regular file"):
+        open_campaign(tiny_campaign, allow_outside=True)
+
+
+def test_file_far_larger_than_a_run_is_refused_without_reading_it(tiny_campaign, tmp_path, capsys):
+    with open(tiny_campaign / "runs" / "run_b.csv", "wb") as f:
+        f.truncate(20 * 2 ** 30)  # 20 GiB, sparse: costs no disk
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"run_b\.csv", "larger than")
+
+
+def test_cr_only_line_endings_read_like_lf(tiny_campaign):
+    path = tiny_campaign / "runs" / "run_a.csv"
+    expected = open_campaign(tiny_campaign).read_run("run_a")
+    path.write_bytes(path.read_bytes().replace(b"\n", b"\r"))
+    run = open_campaign(tiny_campaign).read_run("run_a")
+    np.testing.assert_array_equal(run.time, expected.time)
+    np.testing.assert_array_equal(run.channels["bogie1_acc_z"], expected.channels["bogie1_acc_z"])
+
+
+def test_cr_only_file_of_100k_fields_is_read_in_linear_time(tiny_campaign, tmp_path, capsys):
+    """A Mac-style header check was quadratic in the fields of the first line: a 100k-field
+    header took minutes. The duplicate check and the field count are linear now."""
+    path = tiny_campaign / "runs" / "run_a.csv"
+    path.write_bytes(b",".join(b"c%d" % i for i in range(100_000)) + b"\r1,2\r")
+    signal.alarm(30)  # a quadratic reader would not end; fail instead of hanging the suite
+    try:
+        identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", r"line 2", "expected 100000 comma-separated")
+    finally:
+        signal.alarm(0)
+
+
+@pytest.mark.parametrize("unit", ["m/s^2", "m/s2", "m/s²"])
+def test_acceleration_unit_spellings_are_accepted_alike(tiny_campaign, unit):
+    replace_in_toml(tiny_campaign, 'unit = "g"', f'unit = "{unit}"')
+    run = open_campaign(tiny_campaign).read_run("run_a")
+    np.testing.assert_allclose(run.channels["bogie1_acc_z"], tiny_columns()["bogie1_acc_z"])
+
+
+def test_messages_quote_only_a_short_excerpt_of_a_cell(tiny_campaign, tmp_path, capsys):
+    set_cell(tiny_campaign, 3, 3, "x" * 5000)
+    err = identify_rejects(tiny_campaign, tmp_path, capsys, r"line 4", r"column 'bogie1_acc_z'", "not a number")
+    assert "x" * 61 not in err and len(err) < 400
+
+
+def test_messages_quote_only_a_short_excerpt_of_a_header(tiny_campaign, tmp_path, capsys):
+    rewrite_run(tiny_campaign, lambda lines: [lines[0] + ",\x1b[2J" + "y" * 5000, *[ln + ",1" for ln in lines[1:]]])
+    err = identify_rejects(tiny_campaign, tmp_path, capsys, r"run_a\.csv", "unknown column")
+    assert "y" * 61 not in err and "\x1b" not in err and len(err) < 400
+
+
+def test_messages_quote_only_a_short_excerpt_of_a_toml_value(tiny_campaign, tmp_path, capsys):
+    replace_in_toml(tiny_campaign, 'unit = "g"', f'unit = "{"z" * 5000}"')
+    err = identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sensors\[0\]\.unit'", "unknown unit")
+    assert "z" * 61 not in err and len(err) < 400

@@ -12,14 +12,29 @@ Choices where the spec leaves room:
 * Unknown keys in campaign.toml are ignored with a warning, as the spec says.
 * Gaps (a time step over 1.5 sampling intervals) are reported and split the run into
   contiguous blocks; nothing is interpolated. NaN and clipped samples are marked
-  invalid per channel.
+  invalid per channel; a channel with no valid sample left is an error.
+* Hostile or corrupted input is refused before it costs time or memory: only regular
+  files inside the campaign folder are read (``open_campaign(allow_outside=True)`` lifts
+  the second condition), sizes are checked before a byte is read, values are held to
+  stated physical plausibility ranges, and every message quotes at most a short excerpt of
+  a file's content (:func:`~calibration.data.errors.excerpt`).
+* A CSV file may end its lines in LF, CRLF or CR alone (Excel's "CSV (Macintosh)"), and
+  may start with a UTF-8 byte order mark.
+* A NaN speed sample is a missing Doppler fix, accepted where a ``distance`` column
+  locates the run; without one it would leave the run's position undefined, so it is an
+  error. The time, distance and speed checks live in :func:`read_run_file`, so every
+  command that reads a run applies them.
 """
 from __future__ import annotations
 
+import collections
+import csv
 import difflib
 import io
 import math
+import os
 import re
+import stat
 import tomllib
 import warnings
 from dataclasses import dataclass, field
@@ -31,8 +46,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .errors import CampaignError
-from .units import BODIES, QUANTITIES, ROTATIONS, TRANSLATIONS, UNITS, si_factor
+from .errors import CampaignError, excerpt
+from .units import BODIES, QUANTITIES, ROTATIONS, TRANSLATIONS, UNITS, canonical_unit, si_factor
 
 FORMAT = "railcal-campaign/1"
 KINDS = ("in_service", "stationary_excitation")
@@ -41,7 +56,41 @@ TRACK_BANDS = ("D1", "D2", "raw")
 GAP_FACTOR = 1.5  # a time step longer than this many sampling intervals is a gap
 _TOP_KEYS = {"format", "kind", "name", "vehicle", "priors", "sensors", "sampling", "excitation"}
 _SENSOR_KEYS = {"name", "quantity", "unit", "body", "direction", "position", "scale"}
-_GEOMETRY_KEYS = {"bogie_semi_spacing", "semi_wheelbase", "length", "width", "height"}
+
+# Plausibility limits. Each keeps a corrupted or hostile value from reaching the analyses,
+# where it would cost hours or give a wrong answer without a word.
+#: campaign.toml is refused above this size before it is parsed: a campaign with hundreds
+#: of sensors and priors is tens of kB.
+MAX_TOML_BYTES = 1 << 20
+#: A run or track file is refused above this size before it is read. The reader holds a
+#: file and its parsed columns in memory (about twice the file); 2 GiB of CSV is about 12 h
+#: of the synthetic 9-column 500 Hz format (48 kB/s), longer than any journey.
+MAX_RUN_BYTES = 2 << 30
+#: ... and a Parquet file above this many cells (rows x columns, from its footer): 2 GiB
+#: as float64, so a small compressed file cannot expand without bound.
+MAX_RUN_CELLS = 1 << 28
+#: [m/s] 720 km/h, above the wheel-on-rail speed record (574.8 km/h, 2007).
+MAX_SPEED = 200.0
+#: [m] 100 000 km: a position along any railway line is below 1e7 m.
+MAX_ABS_DISTANCE = 1.0e8
+#: [s] Unix time in seconds is 1.8e9 today; a time beyond 1e10 s (317 years) is not in seconds.
+MAX_ABS_TIME = 1.0e10
+#: [Hz] loggers of vehicle dynamics record between a few Hz (GPS) and tens of kHz (acoustics).
+RATE_RANGE = (1.0, 1.0e5)
+#: The median time step of a run must match 1 / [sampling] rate within this fraction: the
+#: analyses filter and resample at the nominal rate, so a rate off by more shifts every
+#: identified frequency by as much (logger clocks agree with their rate to ppm).
+RATE_TOLERANCE = 0.02
+#: [m] every sensor position coordinate: 1 km bounds any placement on or beside a vehicle.
+MAX_POSITION = 1.0e3
+#: [m] plausible [vehicle] geometry, (low, high):
+#: bogie_semi_spacing, half the bogie-centre distance: 2-30 m, from short tram sections to
+#: 27 m freight wagons; semi_wheelbase: bogie wheelbases 1-5 m, from tram bogies to
+#: three-axle locomotive bogies; length 2-40 m, width 1-5 m (the widest loading gauges are
+#: under 4 m), height 1-8 m above the rail (double-stack container cars: 6.1 m).
+GEOMETRY_RANGES = {"bogie_semi_spacing": (1.0, 15.0), "semi_wheelbase": (0.5, 2.5), "length": (2.0, 40.0),
+                   "width": (1.0, 5.0), "height": (1.0, 8.0)}
+_GEOMETRY_KEYS = set(GEOMETRY_RANGES)
 
 
 # ----------------------------------------------------------------------------- metadata
@@ -110,31 +159,58 @@ class CampaignMeta:
         return d
 
 
+def _q(value) -> str:
+    """A value of campaign.toml as quoted in a message: its repr, shortened."""
+    return excerpt(repr(value))
+
+
 def _number(value, path, key) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise CampaignError(f"expected a finite number, got {value!r}", path=path, key=key)
-    return float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CampaignError(f"expected a finite number, got {_q(value)}", path=path, key=key)
+    try:
+        x = float(value)  # a TOML integer of hundreds of digits has no float
+    except OverflowError:
+        x = math.inf
+    if not math.isfinite(x):
+        raise CampaignError(f"expected a finite number, got {_q(value)}", path=path, key=key)
+    return x
 
 
 def _position(value, path, key) -> tuple[float, float, float]:
     if not isinstance(value, list) or len(value) != 3:
-        raise CampaignError(f"expected [x, y, z] in metres, got {value!r}", path=path, key=key)
-    return tuple(_number(v, path, key) for v in value)  # type: ignore[return-value]
+        raise CampaignError(f"expected [x, y, z] in metres, got {_q(value)}", path=path, key=key)
+    xyz = tuple(_number(v, path, key) for v in value)
+    if max(abs(v) for v in xyz) > MAX_POSITION:
+        raise CampaignError(f"a coordinate beyond {MAX_POSITION:g} m of the carbody centre: {_q(value)}", path=path,
+                            key=key)
+    return xyz  # type: ignore[return-value]
+
+
+def _check_geometry(geometry: Mapping[str, float], path) -> None:
+    """The [vehicle] lengths fit together: the axles of a bogie lie between the bogie
+    centres, and the bogie centres under the carbody (at its ends on articulated units)."""
+    L_v, L_b, length = (geometry.get(k) for k in ("bogie_semi_spacing", "semi_wheelbase", "length"))
+    if L_v is not None and L_b is not None and not L_b < L_v:
+        raise CampaignError(f"semi_wheelbase {L_b:g} m must be below bogie_semi_spacing {L_v:g} m", path=path,
+                            key="vehicle.semi_wheelbase")
+    if L_v is not None and length is not None and not L_v <= length / 2:
+        raise CampaignError(f"bogie_semi_spacing {L_v:g} m puts the bogies beyond the ends of a {length:g} m "
+                            f"carbody", path=path, key="vehicle.bogie_semi_spacing")
 
 
 def parse_meta(data: dict, path: Path) -> CampaignMeta:
     """Check and convert the parsed campaign.toml; ``path`` is named in every message."""
     for k in sorted(set(data) - _TOP_KEYS):
-        warnings.warn(f"{path}: unknown key '{k}' ignored", stacklevel=2)
+        warnings.warn(f"{path}: unknown key '{excerpt(k)}' ignored", stacklevel=2)
     fmt = data.get("format")
     if fmt != FORMAT:
-        raise CampaignError(f"expected format = \"{FORMAT}\", got {fmt!r}", path=path, key="format")
+        raise CampaignError(f"expected format = \"{FORMAT}\", got {_q(fmt)}", path=path, key="format")
     kind = data.get("kind")
     if kind not in KINDS:
-        raise CampaignError(f"expected one of {', '.join(KINDS)}, got {kind!r}", path=path, key="kind")
+        raise CampaignError(f"expected one of {', '.join(KINDS)}, got {_q(kind)}", path=path, key="kind")
     vehicle = data.get("vehicle", {})
     if not isinstance(vehicle, (dict, str)):
-        raise CampaignError(f"expected a [vehicle] table or a name, got {vehicle!r}", path=path, key="vehicle")
+        raise CampaignError(f"expected a [vehicle] table or a name, got {_q(vehicle)}", path=path, key="vehicle")
     vehicle_name = data.get("vehicle") if isinstance(data.get("vehicle"), str) else ""
     geometry: dict[str, float] = {}
     if isinstance(vehicle, dict):
@@ -142,10 +218,13 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
         for k, v in vehicle.items():
             if k in _GEOMETRY_KEYS:
                 geometry[k] = _number(v, path, f"vehicle.{k}")
-                if geometry[k] <= 0:
-                    raise CampaignError(f"must be > 0 m, got {v}", path=path, key=f"vehicle.{k}")
+                lo, hi = GEOMETRY_RANGES[k]
+                if not lo <= geometry[k] <= hi:
+                    raise CampaignError(f"{geometry[k]:g} m is not a plausible {k} (expected {lo:g} to {hi:g} m)",
+                                        path=path, key=f"vehicle.{k}")
             elif k != "name":
-                warnings.warn(f"{path}: unknown key 'vehicle.{k}' ignored", stacklevel=2)
+                warnings.warn(f"{path}: unknown key 'vehicle.{excerpt(k)}' ignored", stacklevel=2)
+        _check_geometry(geometry, path)
     priors: dict[str, Prior] = {}
     raw_priors = data.get("priors") or {}
     if not isinstance(raw_priors, dict):
@@ -175,49 +254,54 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
         if not isinstance(s, dict):
             raise CampaignError("expected a table", path=path, key=key)
         for k in sorted(set(s) - _SENSOR_KEYS):
-            warnings.warn(f"{path}: unknown key '{key}.{k}' ignored", stacklevel=2)
+            warnings.warn(f"{path}: unknown key '{key}.{excerpt(k)}' ignored", stacklevel=2)
         for k in ("name", "quantity", "unit", "body", "direction", "position"):
             if k not in s:
                 raise CampaignError(f"missing '{k}'", path=path, key=key)
             if k != "position" and not isinstance(s[k], str):
-                raise CampaignError(f"expected a string, got {s[k]!r}", path=path, key=f"{key}.{k}")
+                raise CampaignError(f"expected a string, got {_q(s[k])}", path=path, key=f"{key}.{k}")
         name = s["name"]
         if not isinstance(name, str) or not NAME_RE.match(name):
-            raise CampaignError(f"sensor name {name!r} must match [A-Za-z0-9_]+", path=path, key=f"{key}.name")
+            raise CampaignError(f"sensor name {_q(name)} must match [A-Za-z0-9_]+", path=path, key=f"{key}.name")
         if name in ("time", "distance", "speed") or name.endswith("_clipped"):
-            raise CampaignError(f"sensor name {name!r} is reserved", path=path, key=f"{key}.name")
+            raise CampaignError(f"sensor name {_q(name)} is reserved", path=path, key=f"{key}.name")
         if name in seen:
             raise CampaignError(f"sensor name '{name}' declared twice (also sensors[{seen[name]}])", path=path,
                                 key=f"{key}.name")
         seen[name] = i
-        q, unit = s["quantity"], s["unit"]
+        q, unit = s["quantity"], canonical_unit(s["unit"])
         if q not in QUANTITIES:
-            raise CampaignError(f"unknown quantity {q!r}; expected one of {', '.join(QUANTITIES)}", path=path,
+            raise CampaignError(f"unknown quantity {_q(q)}; expected one of {', '.join(QUANTITIES)}", path=path,
                                 key=f"{key}.quantity")
         if unit not in UNITS:
-            raise CampaignError(f"unknown unit {unit!r}; expected one of {', '.join(UNITS)}", path=path,
+            raise CampaignError(f"unknown unit {_q(unit)}; expected one of {', '.join(UNITS)}", path=path,
                                 key=f"{key}.unit")
         if UNITS[unit][0] != q:
-            raise CampaignError(f"unit {unit!r} is not a unit of {q}", path=path, key=f"{key}.unit")
+            raise CampaignError(f"unit {_q(unit)} is not a unit of {q}", path=path, key=f"{key}.unit")
         if s["body"] not in BODIES:
-            raise CampaignError(f"unknown body {s['body']!r}; expected one of {', '.join(BODIES)}", path=path,
+            raise CampaignError(f"unknown body {_q(s['body'])}; expected one of {', '.join(BODIES)}", path=path,
                                 key=f"{key}.body")
         direction = s["direction"]
         allowed = ROTATIONS if q == "angular_velocity" else TRANSLATIONS
         if direction not in allowed:
-            raise CampaignError(f"direction {direction!r} not valid for {q}; expected one of {', '.join(allowed)}",
+            raise CampaignError(f"direction {_q(direction)} not valid for {q}; expected one of {', '.join(allowed)}",
                                 path=path, key=f"{key}.direction")
         scale = _number(s.get("scale", 1.0), path, f"{key}.scale")
         if scale == 0:
             raise CampaignError("scale must not be zero", path=path, key=f"{key}.scale")
+        factor = scale * si_factor(unit)
+        if not math.isfinite(factor) or factor == 0:
+            raise CampaignError(f"scale {scale:g} times the {unit} to SI factor {si_factor(unit):g} is not finite "
+                                f"and non-zero", path=path, key=f"{key}.scale")
         sensors.append(Sensor(name, q, unit, s["body"], direction, _position(s["position"], path, f"{key}.position"),
                               scale))
     sampling = data.get("sampling")
     if not isinstance(sampling, dict) or "rate" not in sampling:
         raise CampaignError("expected [sampling] with rate [Hz]", path=path, key="sampling.rate")
     rate = _number(sampling["rate"], path, "sampling.rate")
-    if rate <= 0:
-        raise CampaignError(f"must be > 0 Hz, got {rate}", path=path, key="sampling.rate")
+    if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
+        raise CampaignError(f"{rate:g} Hz is not a plausible sampling rate (expected {RATE_RANGE[0]:g} to "
+                            f"{RATE_RANGE[1]:g} Hz)", path=path, key="sampling.rate")
     excitation = None
     if kind == "stationary_excitation":
         ex = data.get("excitation")
@@ -225,7 +309,7 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
             raise CampaignError("a stationary_excitation campaign needs [excitation] sensor = ...", path=path,
                                 key="excitation")
         if ex["sensor"] not in seen:
-            raise CampaignError(f"names sensor {ex['sensor']!r}, which is not declared in [[sensors]]", path=path,
+            raise CampaignError(f"names sensor {_q(ex['sensor'])}, which is not declared in [[sensors]]", path=path,
                                 key="excitation.sensor")
         excitation = Excitation(ex["sensor"], _position(ex.get("position", [0, 0, 0]), path, "excitation.position"))
     return CampaignMeta(kind, str(data.get("name", "")), vehicle_name, tuple(sensors), rate, geometry, priors,
@@ -277,15 +361,67 @@ class _Table:
         return "" if self.lines is not None else f" (row {row})"
 
 
+def _kind_of(mode: int) -> str:
+    for test, name in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a file"
+
+
+def _check_file(path: Path, limit: int, *, root: Path | None = None) -> None:
+    """Refuse, before opening it, anything but a regular file of at most ``limit`` bytes
+    (inside ``root``, resolved, when given): a FIFO or a device would block or never end,
+    an oversized file would fill the memory, a link out of the folder reads what the user
+    did not hand over."""
+    try:
+        st = os.stat(path)  # follows links: the target is what would be read
+    except OSError as e:
+        raise CampaignError(f"cannot read: {e.strerror}", path=path) from None
+    if not stat.S_ISREG(st.st_mode):
+        raise CampaignError(f"not a regular file ({_kind_of(st.st_mode)})", path=path)
+    if st.st_size > limit:
+        raise CampaignError(f"{st.st_size} bytes, larger than the {limit} bytes such a file may be", path=path)
+    if root is not None:
+        real, top = os.path.realpath(path), os.path.realpath(root)
+        if os.path.commonpath([real, top]) != top:
+            raise CampaignError(f"resolves to {real}, outside the campaign folder {top}; it is read only when "
+                                f"outside files are allowed (open_campaign(..., allow_outside=True))", path=path)
+
+
+def _read_bytes(path: Path, limit: int) -> bytes:
+    _check_file(path, limit)
+    try:
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)  # never more, even if the file grew since the check
+    except OSError as e:
+        raise CampaignError(f"cannot read: {e.strerror}", path=path) from None
+    if len(data) > limit:
+        raise CampaignError(f"larger than the {limit} bytes such a file may be", path=path)
+    return data
+
+
+_BOM = b"\xef\xbb\xbf"
+# a cell the fallback parser accepts: a decimal number, inf or nan, or nothing (missing)
+_CELL = re.compile(rb"\s*(?:[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|inf|infinity)|nan)?\s*",
+                   re.IGNORECASE)
+
+
 def _read_csv(path: Path) -> _Table:
     """Read a CSV run or track file strictly. A comment is a line whose first non-blank
     character is '#'; blank lines are skipped; every other line after the header must have
-    the header's number of fields; cells are numbers, empty or nan."""
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise CampaignError(f"cannot read: {e.strerror}", path=path) from None
+    the header's number of fields; cells are numbers, empty or nan. Lines end in LF, CRLF
+    or CR; a UTF-8 byte order mark is skipped. Time and memory are linear in the size."""
+    data = _read_bytes(path, MAX_RUN_BYTES)
+    if data.startswith(_BOM):
+        data = data[len(_BOM):]
+    elif data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise CampaignError("UTF-16 text; save the file as UTF-8", path=path, line=1)
+    n_cr = data.count(b"\r")
+    if n_cr and n_cr != data.count(b"\r\n"):  # CR alone ends lines (Excel's "CSV (Macintosh)")
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     raw_lines = data.split(b"\n")
+    del data
     kept, numbers = [], []
     for i, raw in enumerate(raw_lines, start=1):
         stripped = raw.strip()
@@ -293,6 +429,7 @@ def _read_csv(path: Path) -> _Table:
             continue
         kept.append(raw.rstrip(b"\r"))
         numbers.append(i)
+    del raw_lines
     if not kept:
         raise CampaignError("no header row", path=path)
     header_line = numbers[0]
@@ -300,9 +437,10 @@ def _read_csv(path: Path) -> _Table:
         names = [c.strip() for c in kept[0].decode("utf-8").split(",")]
     except UnicodeDecodeError:
         raise CampaignError("header is not UTF-8 text", path=path, line=header_line) from None
-    if len(set(names)) != len(names):
-        dup = sorted({n for n in names if names.count(n) > 1})
-        raise CampaignError(f"duplicate column(s) {', '.join(dup)} in the header", path=path, line=header_line)
+    dup = [n for n, k in collections.Counter(names).items() if k > 1]
+    if dup:
+        shown = ", ".join(f"'{excerpt(n, 30)}'" for n in dup[:3]) + (f" and {len(dup) - 3} more" if len(dup) > 3 else "")
+        raise CampaignError(f"duplicate column(s) {shown} in the header", path=path, line=header_line)
     expected = len(names) - 1
     counts = np.fromiter((ln.count(b",") for ln in kept), int, len(kept))
     bad = np.flatnonzero(counts != expected)
@@ -311,60 +449,94 @@ def _read_csv(path: Path) -> _Table:
         raise CampaignError(f"expected {expected + 1} comma-separated fields (as the header), found {counts[k] + 1}",
                             path=path, line=numbers[k])
     lines = np.asarray(numbers[1:])
-    body = b"\n".join(kept)
+    rows = kept[1:]
+    body = b"\n".join(rows)
     try:
         body.decode("utf-8")
     except UnicodeDecodeError as e:
-        line = numbers[body[:e.start].count(b"\n")]
+        line = int(lines[body[:e.start].count(b"\n")])
         raise CampaignError("not UTF-8 text", path=path, line=line) from None
+    if not rows:
+        return _Table({n: np.empty(0) for n in names}, lines)
     try:
-        # fast path: every cell a number, empty or nan
-        df = pd.read_csv(io.BytesIO(body), dtype=np.float64, engine="c", na_values=["", "nan", "NaN", "NAN"],
-                         keep_default_na=False, skipinitialspace=True)
-    except ValueError:
-        # slow path, only to say which cell is not a number
-        df = pd.read_csv(io.BytesIO(body), dtype=str, engine="c", keep_default_na=False, na_filter=False)
-    df.columns = [c.strip() for c in df.columns]
-    return _Table(_to_float_columns(df, path, lines), lines)
+        # fast path: every cell a number, empty or nan; quotes are not special, as the
+        # field count above does not know them either
+        df = pd.read_csv(io.BytesIO(body), header=None, names=list(range(len(names))), dtype=np.float64,
+                         engine="c", na_values=["", "nan", "NaN", "NAN"], keep_default_na=False,
+                         skipinitialspace=True, quoting=csv.QUOTE_NONE, skip_blank_lines=False)
+        if len(df) != len(rows):
+            raise ValueError("row count differs")
+        columns = {n: df[i].to_numpy(dtype=float) for i, n in enumerate(names)}
+    except (ValueError, OverflowError):
+        columns = _parse_rows(rows, names, lines, path)  # says which cell is not a number
+    return _Table(columns, lines)
+
+
+def _parse_rows(rows: list[bytes], names: list[str], lines: np.ndarray, path: Path) -> dict[str, np.ndarray]:
+    """The slow, plain parse of the data rows, cell by cell, naming the first bad cell."""
+    out = np.empty((len(rows), len(names)))
+    for r, row in enumerate(rows):
+        for c, cell in enumerate(row.split(b",")):
+            if not _CELL.fullmatch(cell):
+                text = excerpt(cell.decode("utf-8", "replace").strip())
+                raise CampaignError(f"'{text}' is not a number (use an empty cell or nan for a missing sample)",
+                                    path=path, line=int(lines[r]), column=names[c])
+            cell = cell.strip()
+            out[r, c] = float(cell) if cell else math.nan
+    return {n: out[:, c].copy() for c, n in enumerate(names)}
+
+
+def _pandas_index_columns(schema: pa.Schema) -> set[str]:
+    """Columns a pandas writer stored its index in: not data, not read."""
+    try:
+        meta = schema.pandas_metadata or {}
+        return {c for c in meta.get("index_columns", []) if isinstance(c, str)}
+    except (ValueError, TypeError, AttributeError):
+        return set()
+
+
+def _arrow_error(e: Exception) -> str:
+    return excerpt(" ".join(str(e).split()), 160)
 
 
 def _read_parquet(path: Path, columns=None) -> _Table:
+    """Read a Parquet run: numeric columns only (integers and floats; booleans only as
+    ``<sensor>_clipped`` flags), nulls as NaN; the size is checked from the footer before
+    any column is read."""
+    _check_file(path, MAX_RUN_BYTES)
     try:
-        if columns is not None:
-            names = pq.read_schema(path).names
-            columns = [c for c in columns if c in names]
-        df = pq.read_table(path, columns=columns).to_pandas()
-    except (pa.ArrowInvalid, OSError) as e:
-        raise CampaignError(f"cannot read Parquet: {e}", path=path) from None
-    return _Table(_to_float_columns(df, path, None), None)
-
-
-def _to_float_columns(df: pd.DataFrame, path: Path, lines: np.ndarray | None) -> dict[str, np.ndarray]:
-    out = {}
-    for col in df.columns:
-        s = df[col]
-        if pd.api.types.is_float_dtype(s):
-            out[col] = s.to_numpy(dtype=float)
-            continue
-        if lines is not None:
-            text = s.str.strip()
-            empty = (text == "") | (text.str.lower() == "nan")
-            vals = pd.to_numeric(text.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
-            bad = np.isnan(vals) & ~empty.to_numpy()
-            if bad.any():
-                row = int(np.argmax(bad))
-                raise CampaignError(f"'{s.iloc[row]}' is not a number (use an empty cell or nan for a missing "
-                                    f"sample)", path=path, line=int(lines[row]), column=col)
-        else:
-            if not (pd.api.types.is_numeric_dtype(s) or pd.api.types.is_bool_dtype(s)):
-                raise CampaignError(f"column type {s.dtype} is not numeric", path=path, column=col)
-            vals = s.to_numpy(dtype=float, na_value=np.nan)
-        out[col] = vals
-    return out
+        f = pq.ParquetFile(path)
+        schema, n_rows = f.schema_arrow, f.metadata.num_rows
+    except (pa.ArrowException, OSError, ValueError, TypeError) as e:
+        raise CampaignError(f"cannot read Parquet: {_arrow_error(e)}", path=path) from None
+    index = _pandas_index_columns(schema)
+    names = [n for n in schema.names if n not in index]
+    dup = sorted({n for n, k in collections.Counter(names).items() if k > 1})
+    if dup:
+        raise CampaignError("duplicate column in the file", path=path, column=dup[0])
+    if n_rows * max(1, len(names)) > MAX_RUN_CELLS:
+        raise CampaignError(f"{n_rows} rows x {len(names)} columns, more than the {MAX_RUN_CELLS} cells a run may "
+                            f"have", path=path)
+    wanted = [n for n in names if columns is None or n in columns]
+    for n in wanted:
+        t = schema.field(n).type
+        flag = n.endswith("_clipped") and pa.types.is_boolean(t)
+        if not (pa.types.is_integer(t) or pa.types.is_floating(t) or flag):
+            what = "boolean (only a <sensor>_clipped flag may be)" if pa.types.is_boolean(t) else excerpt(str(t), 40)
+            raise CampaignError(f"column type {what} is not numeric; expected integers or floats", path=path,
+                                column=n)
+    try:
+        table = f.read(columns=wanted, use_pandas_metadata=False)
+        out = {n: table.column(n).cast(pa.float64(), safe=False).to_numpy(zero_copy_only=False) for n in wanted}
+    except (pa.ArrowException, OSError, ValueError, TypeError) as e:
+        raise CampaignError(f"cannot read Parquet: {_arrow_error(e)}", path=path) from None
+    return _Table({n: np.asarray(v, dtype=float) for n, v in out.items()}, None)
 
 
 def _check_axes(table: _Table, path: Path, meta: CampaignMeta):
-    """Check the time, distance and speed columns; returns (time, distance | None, speed | None)."""
+    """Check the time, distance and speed columns; returns (time, distance | None, speed | None).
+
+    Every command reads runs through here, so they all refuse the same corrupted axes."""
     cols = table.columns
     if "time" not in cols:
         raise CampaignError("missing required column 'time'", path=path, column="time")
@@ -373,24 +545,35 @@ def _check_axes(table: _Table, path: Path, meta: CampaignMeta):
     t = cols["time"]
     if t.size < 2:
         raise CampaignError("fewer than two samples", path=path, column="time")
-    for name in ("time", "distance"):
+
+    def refuse(message, name, row):
+        raise CampaignError(message + table.row_word(row), path=path, column=name, **table.where(row))
+
+    for name, limit, unit in (("time", MAX_ABS_TIME, "s"), ("distance", MAX_ABS_DISTANCE, "m")):
         x = cols.get(name)
-        if x is not None and not np.isfinite(x).all():
+        if x is None:
+            continue
+        if not np.isfinite(x).all():
             row = int(np.argmax(~np.isfinite(x)))
-            raise CampaignError(f"{name} is missing or not finite ({x[row]!r})" + table.row_word(row), path=path,
-                                column=name, **table.where(row))
+            refuse(f"{name} is missing or not finite ({x[row]!r})", name, row)
+        if (np.abs(x) > limit).any():
+            row = int(np.argmax(np.abs(x) > limit))
+            refuse(f"{name} {x[row]:g} {unit} is beyond the plausible +-{limit:g} {unit}", name, row)
     dt = np.diff(t)
     if (dt <= 0).any():
         row = int(np.argmax(dt <= 0)) + 1
-        raise CampaignError(f"time not strictly increasing ({t[row - 1]!r} then {t[row]!r})"
-                            + table.row_word(row), path=path, column="time", **table.where(row))
+        refuse(f"time not strictly increasing ({t[row - 1]!r} then {t[row]!r})", "time", row)
     distance = cols.get("distance")
     if distance is not None:
         dd = np.diff(distance)
         if (dd < 0).any():
             row = int(np.argmax(dd < 0)) + 1
-            raise CampaignError(f"distance decreases ({distance[row - 1]!r} then {distance[row]!r})"
-                                + table.row_word(row), path=path, column="distance", **table.where(row))
+            refuse(f"distance decreases ({distance[row - 1]!r} then {distance[row]!r})", "distance", row)
+        span, duration = float(distance[-1] - distance[0]), float(t[-1] - t[0])
+        if span > MAX_SPEED * duration:
+            row = int(np.argmax(dd)) + 1
+            refuse(f"distance advances {span:g} m in {duration:g} s, faster than {MAX_SPEED:g} m/s (the largest "
+                   f"step ends here)", "distance", row)
     speed = cols.get("speed")
     if speed is not None:
         finite = np.isfinite(speed)
@@ -399,10 +582,24 @@ def _check_axes(table: _Table, path: Path, meta: CampaignMeta):
                 raise CampaignError("speed column has no valid sample and there is no distance column", path=path,
                                     column="speed")
             speed = None  # an empty optional column: distance alone locates the run
-        elif (speed[finite] < 0).any() or np.isinf(speed).any():
-            row = int(np.argmax(~finite & ~np.isnan(speed) | (np.nan_to_num(speed) < 0)))
-            raise CampaignError(f"negative or infinite speed ({speed[row]!r})" + table.row_word(row), path=path,
-                                column="speed", **table.where(row))
+        else:
+            if np.isinf(speed).any():
+                refuse(f"infinite speed ({speed[np.argmax(np.isinf(speed))]!r})", "speed",
+                       int(np.argmax(np.isinf(speed))))
+            if distance is None and not finite.all():
+                refuse("speed is missing, and without a distance column the run's position there is unknown",
+                       "speed", int(np.argmax(~finite)))
+            if (speed[finite] < 0).any():
+                row = int(np.argmax(np.nan_to_num(speed) < 0))
+                refuse(f"negative speed ({speed[row]!r})", "speed", row)
+            if (speed[finite] > MAX_SPEED).any():
+                row = int(np.argmax(np.nan_to_num(speed) > MAX_SPEED))
+                refuse(f"speed {speed[row]:g} m/s is above the plausible {MAX_SPEED:g} m/s", "speed", row)
+    step, nominal = float(np.median(dt)), 1.0 / meta.sampling_rate
+    if abs(step / nominal - 1.0) > RATE_TOLERANCE:
+        raise CampaignError(f"the median time step {step:.6g} s does not match campaign.toml's [sampling] rate = "
+                            f"{meta.sampling_rate:g} Hz ({nominal:.6g} s)", path=path, column="time",
+                            key="sampling.rate")
     return t, distance, speed
 
 
@@ -416,7 +613,7 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
     known = declared | {"time", "distance", "speed"} | {f"{n}_clipped" for n in declared}
     for c in names:
         if c not in known:
-            near = difflib.get_close_matches(c, sorted(declared), n=1)
+            near = difflib.get_close_matches(c, sorted(declared), n=1) if len(c) <= 100 else []
             hint = f"; did you mean '{near[0]}'?" if near else ""
             raise CampaignError(f"unknown column, not declared in campaign.toml [[sensors]]{hint}", path=path,
                                 column=c)
@@ -428,16 +625,32 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
     channels, valid = {}, {}
     for s in meta.sensors:
         raw = cols[s.name]
-        ok = np.isfinite(raw)
-        if not ok.any():
-            raise CampaignError("channel has no valid sample (all NaN or empty)", path=path, column=s.name)
-        clip = cols.get(f"{s.name}_clipped")
+        if np.isinf(raw).any():
+            row = int(np.argmax(np.isinf(raw)))
+            raise CampaignError(f"sample is not finite ({raw[row]!r}); use an empty cell or nan for a missing sample"
+                                + table.row_word(row), path=path, column=s.name, **table.where(row))
+        ok = ~np.isnan(raw)
+        clip_name = f"{s.name}_clipped"
+        clip = cols.get(clip_name)
         if clip is not None:
-            bad = ~np.isin(clip[np.isfinite(clip)], (0.0, 1.0))
+            bad = ~np.isnan(clip) & (clip != 0.0) & (clip != 1.0)
             if bad.any():
-                raise CampaignError("clipped flags must be 0 or 1", path=path, column=f"{s.name}_clipped")
+                row = int(np.argmax(bad))
+                raise CampaignError(f"clipped flags must be 0 or 1, got {clip[row]!r}" + table.row_word(row),
+                                    path=path, column=clip_name, **table.where(row))
             ok &= ~(clip == 1.0)
-        channels[s.name] = raw * s.si_factor
+        if not ok.any():  # nothing left to analyse: all missing, or all flagged clipped
+            raise CampaignError("channel has no valid sample (all NaN, empty or flagged clipped)", path=path,
+                                column=s.name)
+        with np.errstate(over="ignore", under="ignore"):
+            si = raw * s.si_factor
+        lost = np.isinf(si) | ((si == 0) & (raw != 0))  # NaN stays NaN and compares False
+        if lost.any():
+            row = int(np.argmax(lost))
+            raise CampaignError(f"sample {raw[row]:g} times the scale and unit factor {s.si_factor:g} is not finite "
+                                f"and non-zero in SI units" + table.row_word(row), path=path, column=s.name,
+                                **table.where(row))
+        channels[s.name] = si
         valid[s.name] = ok
 
     nominal_dt = 1.0 / meta.sampling_rate
@@ -449,6 +662,10 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
 
 
 # ------------------------------------------------------------------------------- tracks
+#: [m] a level column beyond this is not a longitudinal level (mm to cm) nor even an altitude.
+MAX_ABS_LEVEL = 1.0e4
+
+
 @dataclass(frozen=True)
 class TrackRecording:
     name: str
@@ -460,16 +677,16 @@ class TrackRecording:
 
 def read_track_file(path: Path) -> TrackRecording:
     path = Path(path)
+    table = _read_csv(path)  # checks the file before anything is read
     band = "raw"
     with open(path, "r", encoding="utf-8", errors="replace") as f:
-        first = f.readline()
+        first = f.readline(200)
     m = re.match(r'^#\s*band\s*=\s*"?([A-Za-z0-9]+)"?', first.strip())
     if m:
         band = m.group(1)
         if band not in TRACK_BANDS:
-            raise CampaignError(f"unknown band {band!r}; expected one of {', '.join(TRACK_BANDS)}", path=path,
+            raise CampaignError(f"unknown band {_q(band)}; expected one of {', '.join(TRACK_BANDS)}", path=path,
                                 line=1)
-    table = _read_csv(path)
     cols = table.columns
     for c in ("distance", "level"):
         if c not in cols:
@@ -477,10 +694,14 @@ def read_track_file(path: Path) -> TrackRecording:
     d, z = cols["distance"], cols["level"]
     if d.size < 2:
         raise CampaignError(f"a track recording needs at least two rows, found {d.size}", path=path)
-    for c, v in (("distance", d), ("level", z)):
+    for c, v, limit in (("distance", d, MAX_ABS_DISTANCE), ("level", z, MAX_ABS_LEVEL)):
         if not np.isfinite(v).all():
             row = int(np.argmax(~np.isfinite(v)))
             raise CampaignError("missing or non-finite value", path=path, column=c, **table.where(row))
+        if (np.abs(v) > limit).any():
+            row = int(np.argmax(np.abs(v) > limit))
+            raise CampaignError(f"{v[row]:g} m is beyond the plausible +-{limit:g} m", path=path, column=c,
+                                **table.where(row))
     if (np.diff(d) <= 0).any():
         row = int(np.argmax(np.diff(d) <= 0)) + 1
         raise CampaignError("distance not strictly increasing", path=path, column="distance", **table.where(row))
@@ -527,23 +748,66 @@ class Campaign:
         return {k: v for k, v in (("time", t), ("distance", distance), ("speed", speed)) if v is not None}
 
 
-def open_campaign(root) -> Campaign:
-    """Open a campaign folder: parse and check campaign.toml, list run and track files."""
+#: TOML nesting deeper than this is refused: campaign.toml nests three levels, and the
+#: parser recurses once per level (thousands of levels exhaust Python's stack).
+MAX_TOML_DEPTH = 32
+_DIGITS = re.compile(r"\d{1000,}")
+
+
+def _toml_line(text: str, pos: int) -> int:
+    return text.count("\n", 0, pos) + 1
+
+
+def _too_deep(text: str) -> int | None:
+    """Line where brackets and braces first nest deeper than MAX_TOML_DEPTH, counted
+    over the text as a whole (strings included: it only places an error message)."""
+    depth = 0
+    for m in re.finditer(r"[\[\]{}]", text):
+        depth += 1 if m.group() in "[{" else -1
+        if depth > MAX_TOML_DEPTH:
+            return _toml_line(text, m.start())
+    return None
+
+
+def _load_toml(path: Path, *, root: Path | None) -> dict:
+    _check_file(path, MAX_TOML_BYTES, root=root)
+    data = _read_bytes(path, MAX_TOML_BYTES)
+    if data.startswith(_BOM):
+        data = data[len(_BOM):]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise CampaignError("not UTF-8 text", path=path, line=data[:e.start].count(b"\n") + 1) from None
+    text = text.replace("\r\n", "\n").replace("\r", "\n")  # CR alone ends lines as in the run files
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        m = re.search(r"line (\d+)", str(e))
+        raise CampaignError(f"not valid TOML: {excerpt(e, 120)}", path=path,
+                            line=int(m.group(1)) if m else None) from None
+    except RecursionError:
+        raise CampaignError(f"arrays or tables nested deeper than {MAX_TOML_DEPTH} levels", path=path,
+                            line=_too_deep(text) or 1) from None
+    except ValueError:  # an integer of thousands of digits (Python's int conversion limit)
+        m = _DIGITS.search(text)
+        raise CampaignError("a number of thousands of digits", path=path,
+                            line=_toml_line(text, m.start()) if m else None) from None
+
+
+def open_campaign(root, *, allow_outside: bool = False) -> Campaign:
+    """Open a campaign folder: parse and check campaign.toml, list run and track files.
+
+    Every file listed is checked at once to be a regular file of a plausible size
+    (:data:`MAX_RUN_BYTES`) whose real path lies inside ``root``; ``allow_outside=True``
+    accepts links to files elsewhere (a shared drive, a read-only archive)."""
     root = Path(root)
     if not root.is_dir():
         raise CampaignError("not a campaign folder (no such directory)", path=root)
+    inside = None if allow_outside else root
     toml_path = root / "campaign.toml"
-    if not toml_path.is_file():
+    if not os.path.lexists(toml_path):
         raise CampaignError("missing campaign.toml", path=root)
-    try:
-        with open(toml_path, "rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as e:
-        m = re.search(r"line (\d+)", str(e))
-        raise CampaignError(f"not valid TOML: {e}", path=toml_path, line=int(m.group(1)) if m else None) from None
-    except UnicodeDecodeError:
-        raise CampaignError("not UTF-8 text", path=toml_path) from None
-    meta = parse_meta(data, toml_path)
+    meta = parse_meta(_load_toml(toml_path, root=inside), toml_path)
     runs_dir = root / "runs"
     if not runs_dir.is_dir():
         raise CampaignError("missing runs/ folder", path=root)
@@ -551,9 +815,11 @@ def open_campaign(root) -> Campaign:
     if not run_paths:
         raise CampaignError("no run files (*.csv or *.parquet)", path=runs_dir)
     stems = [p.stem for p in run_paths]
-    dups = sorted({s for s in stems if stems.count(s) > 1})
+    dups = sorted({s for s, k in collections.Counter(stems).items() if k > 1})
     if dups:
-        raise CampaignError(f"run id(s) {', '.join(dups)} present as both CSV and Parquet", path=runs_dir)
+        raise CampaignError(f"run id(s) {excerpt(', '.join(dups))} present as both CSV and Parquet", path=runs_dir)
     track_dir = root / "track"
     tracks = tuple(sorted(track_dir.glob("*.csv"))) if track_dir.is_dir() else ()
+    for p in (*run_paths, *tracks):
+        _check_file(p, MAX_RUN_BYTES, root=inside)
     return Campaign(root, meta, tuple(run_paths), tracks)

@@ -1,6 +1,27 @@
 """Errors about user input. The command line turns them into exit code 2."""
 from __future__ import annotations
 
+#: At most this many characters of a file's content (a cell, a header, a TOML value) are
+#: quoted in a message, so a message never echoes whole lines of an arbitrary file.
+EXCERPT_CHARS = 60
+_SURROGATES = (0xD800, 0xDFFF)  # undecodable bytes of a file name (os.fsdecode)
+
+
+def excerpt(text, limit: int = EXCERPT_CHARS) -> str:
+    """``text`` shortened to ``limit`` characters (an ellipsis marks the cut), with control
+    characters, escape sequences and undecodable bytes escaped so that a message prints
+    safely on any terminal."""
+    s = str(text)
+    if len(s) > limit:
+        s = s[:limit - 1] + "…"
+    return "".join(c if c.isprintable() and not _SURROGATES[0] <= ord(c) <= _SURROGATES[1]
+                   else c.encode("unicode_escape", "backslashreplace").decode("ascii") for c in s)
+
+
+def _printable(text) -> str:
+    """The same escaping without shortening, for file paths (named in full)."""
+    return excerpt(text, limit=10 ** 9)
+
 
 class InputError(ValueError):
     """Bad input: the message names the file and the line, column or key, and what was expected."""
@@ -9,13 +30,13 @@ class InputError(ValueError):
                  key: str | None = None):
         where = []
         if path is not None:
-            where.append(str(path))
+            where.append(_printable(path))
         if line is not None:
             where.append(f"line {line}")
         if column is not None:
-            where.append(f"column '{column}'")
+            where.append(f"column '{excerpt(column)}'")
         if key is not None:
-            where.append(f"key '{key}'")
+            where.append(f"key '{excerpt(key)}'")
         super().__init__(f"{': '.join([', '.join(where), message]) if where else message}")
         self.path, self.line, self.column, self.key = path, line, column, key
 

@@ -17,6 +17,10 @@ UNITS: dict[str, tuple[str, float]] = {
     "mm": ("displacement", 1.0e-3),
     "m/s": ("velocity", 1.0),
 }
+#: Other spellings of a unit in UNITS, read as that unit: loggers and spreadsheets write
+#: m/s^2 as "m/s2" (no caret in their character set) or "m/s²" (Unicode superscript). Only
+#: spellings that cannot mean anything else are listed.
+UNIT_ALIASES: dict[str, str] = {"m/s2": "m/s^2", "m/s²": "m/s^2"}
 SI_UNIT = {"acceleration": "m/s^2", "angular_velocity": "rad/s", "force": "N", "displacement": "m",
            "velocity": "m/s"}
 QUANTITIES = tuple(SI_UNIT)
@@ -26,5 +30,10 @@ BODIES = ("carbody", "bogie1", "bogie2", "axle1", "axle2", "axle3", "axle4", "fl
           "side_right", "ground")
 
 
+def canonical_unit(unit: str) -> str:
+    """The UNITS spelling of ``unit`` (itself when it is one; an alias's unit otherwise)."""
+    return UNIT_ALIASES.get(unit, unit)
+
+
 def si_factor(unit: str) -> float:
-    return UNITS[unit][1]
+    return UNITS[canonical_unit(unit)][1]
