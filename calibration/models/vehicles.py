@@ -31,6 +31,10 @@ TTB-2D (SoftwareX 20, 2022, file TrainProp_Manchester_BenchMark.m): per-corner p
 2D model's per-wheelset and per-bogie elements; bogie centres 2 x 9.5 m, wheelbase
 2 x 1.28 m. The in-service seed's Table 2 lists its 2D frequencies as 1.07, 1.28, 7.47
 and 11.68 Hz.
+
+The box-type vehicle (the RTRI seed's Shinkansen-type car, :mod:`calibration.models.box`)
+is assembled by :func:`calibration.models.box.assemble`; :func:`box_modes` gives its
+labelled modes (``railcal modes --model box``).
 """
 from __future__ import annotations
 
