@@ -533,3 +533,10 @@ def test_messages_quote_only_a_short_excerpt_of_a_toml_value(tiny_campaign, tmp_
     replace_in_toml(tiny_campaign, 'unit = "g"', f'unit = "{"z" * 5000}"')
     err = identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'sensors\[0\]\.unit'", "unknown unit")
     assert "z" * 61 not in err and len(err) < 400
+
+
+def test_toml_cut_inside_a_string_names_the_last_line(tiny_campaign, tmp_path, capsys):
+    toml = tiny_campaign / "campaign.toml"
+    text = toml.read_text()
+    toml.write_text(text[:text.index('"railcal-campaign/1"') + 5])  # tomllib: "at end of document"
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"campaign\.toml", r"line 1\b", "not valid TOML")

@@ -439,7 +439,8 @@ def _read_csv(path: Path) -> _Table:
         raise CampaignError("header is not UTF-8 text", path=path, line=header_line) from None
     dup = [n for n, k in collections.Counter(names).items() if k > 1]
     if dup:
-        shown = ", ".join(f"'{excerpt(n, 30)}'" for n in dup[:3]) + (f" and {len(dup) - 3} more" if len(dup) > 3 else "")
+        more = f" and {len(dup) - 3} more" if len(dup) > 3 else ""
+        shown = ", ".join(f"'{excerpt(n, 30)}'" for n in dup[:3]) + more
         raise CampaignError(f"duplicate column(s) {shown} in the header", path=path, line=header_line)
     expected = len(names) - 1
     counts = np.fromiter((ln.count(b",") for ln in kept), int, len(kept))
@@ -555,20 +556,20 @@ def _check_axes(table: _Table, path: Path, meta: CampaignMeta):
             continue
         if not np.isfinite(x).all():
             row = int(np.argmax(~np.isfinite(x)))
-            refuse(f"{name} is missing or not finite ({x[row]!r})", name, row)
+            refuse(f"{name} is missing or not finite ({float(x[row])!r})", name, row)
         if (np.abs(x) > limit).any():
             row = int(np.argmax(np.abs(x) > limit))
             refuse(f"{name} {x[row]:g} {unit} is beyond the plausible +-{limit:g} {unit}", name, row)
     dt = np.diff(t)
     if (dt <= 0).any():
         row = int(np.argmax(dt <= 0)) + 1
-        refuse(f"time not strictly increasing ({t[row - 1]!r} then {t[row]!r})", "time", row)
+        refuse(f"time not strictly increasing ({float(t[row - 1])!r} then {float(t[row])!r})", "time", row)
     distance = cols.get("distance")
     if distance is not None:
         dd = np.diff(distance)
         if (dd < 0).any():
             row = int(np.argmax(dd < 0)) + 1
-            refuse(f"distance decreases ({distance[row - 1]!r} then {distance[row]!r})", "distance", row)
+            refuse(f"distance decreases ({float(distance[row - 1])!r} then {float(distance[row])!r})", "distance", row)
         span, duration = float(distance[-1] - distance[0]), float(t[-1] - t[0])
         if span > MAX_SPEED * duration:
             row = int(np.argmax(dd)) + 1
@@ -584,14 +585,14 @@ def _check_axes(table: _Table, path: Path, meta: CampaignMeta):
             speed = None  # an empty optional column: distance alone locates the run
         else:
             if np.isinf(speed).any():
-                refuse(f"infinite speed ({speed[np.argmax(np.isinf(speed))]!r})", "speed",
+                refuse(f"infinite speed ({float(speed[np.argmax(np.isinf(speed))])!r})", "speed",
                        int(np.argmax(np.isinf(speed))))
             if distance is None and not finite.all():
                 refuse("speed is missing, and without a distance column the run's position there is unknown",
                        "speed", int(np.argmax(~finite)))
             if (speed[finite] < 0).any():
                 row = int(np.argmax(np.nan_to_num(speed) < 0))
-                refuse(f"negative speed ({speed[row]!r})", "speed", row)
+                refuse(f"negative speed ({float(speed[row])!r})", "speed", row)
             if (speed[finite] > MAX_SPEED).any():
                 row = int(np.argmax(np.nan_to_num(speed) > MAX_SPEED))
                 refuse(f"speed {speed[row]:g} m/s is above the plausible {MAX_SPEED:g} m/s", "speed", row)
@@ -627,8 +628,8 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
         raw = cols[s.name]
         if np.isinf(raw).any():
             row = int(np.argmax(np.isinf(raw)))
-            raise CampaignError(f"sample is not finite ({raw[row]!r}); use an empty cell or nan for a missing sample"
-                                + table.row_word(row), path=path, column=s.name, **table.where(row))
+            raise CampaignError(f"sample is not finite ({float(raw[row])!r}); use an empty cell or nan for a missing "
+                                f"sample" + table.row_word(row), path=path, column=s.name, **table.where(row))
         ok = ~np.isnan(raw)
         clip_name = f"{s.name}_clipped"
         clip = cols.get(clip_name)
@@ -636,7 +637,7 @@ def read_run_file(path: Path, meta: CampaignMeta) -> Run:
             bad = ~np.isnan(clip) & (clip != 0.0) & (clip != 1.0)
             if bad.any():
                 row = int(np.argmax(bad))
-                raise CampaignError(f"clipped flags must be 0 or 1, got {clip[row]!r}" + table.row_word(row),
+                raise CampaignError(f"clipped flags must be 0 or 1, got {float(clip[row])!r}" + table.row_word(row),
                                     path=path, column=clip_name, **table.where(row))
             ok &= ~(clip == 1.0)
         if not ok.any():  # nothing left to analyse: all missing, or all flagged clipped
@@ -782,9 +783,9 @@ def _load_toml(path: Path, *, root: Path | None) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        m = re.search(r"line (\d+)", str(e))
-        raise CampaignError(f"not valid TOML: {excerpt(e, 120)}", path=path,
-                            line=int(m.group(1)) if m else None) from None
+        m = re.search(r"line (\d+)", str(e))  # tomllib says "at end of document" for a cut file
+        line = int(m.group(1)) if m else text.count("\n") + 1
+        raise CampaignError(f"not valid TOML: {excerpt(e, 120)}", path=path, line=line) from None
     except RecursionError:
         raise CampaignError(f"arrays or tables nested deeper than {MAX_TOML_DEPTH} levels", path=path,
                             line=_too_deep(text) or 1) from None
