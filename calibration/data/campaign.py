@@ -69,6 +69,11 @@ MAX_RUN_BYTES = 2 << 30
 #: ... and a Parquet file above this many cells (rows x columns, from its footer): 2 GiB
 #: as float64, so a small compressed file cannot expand without bound.
 MAX_RUN_CELLS = 1 << 28
+#: ... and a CSV file of more lines than this (12 h at 500 Hz is 21.6 M rows): the reader
+#: keeps about 40 bytes per line besides the text, so this bounds that to under 3 GB.
+MAX_RUN_LINES = 1 << 26
+#: ... or of more columns: a campaign declares tens, at most hundreds, of sensors.
+MAX_COLUMNS = 10_000
 #: [m/s] 720 km/h, above the wheel-on-rail speed record (574.8 km/h, 2007).
 MAX_SPEED = 200.0
 #: [m] 100 000 km: a position along any railway line is below 1e7 m.
@@ -420,6 +425,9 @@ def _read_csv(path: Path) -> _Table:
     n_cr = data.count(b"\r")
     if n_cr and n_cr != data.count(b"\r\n"):  # CR alone ends lines (Excel's "CSV (Macintosh)")
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    n_lines = data.count(b"\n") + 1
+    if n_lines > MAX_RUN_LINES:
+        raise CampaignError(f"{n_lines} lines, more than the {MAX_RUN_LINES} a run file may have", path=path)
     raw_lines = data.split(b"\n")
     del data
     kept, numbers = [], []
@@ -433,6 +441,9 @@ def _read_csv(path: Path) -> _Table:
     if not kept:
         raise CampaignError("no header row", path=path)
     header_line = numbers[0]
+    if kept[0].count(b",") >= MAX_COLUMNS:
+        raise CampaignError(f"{kept[0].count(b',') + 1} columns in the header, more than the {MAX_COLUMNS} a run file "
+                            f"may have", path=path, line=header_line)
     try:
         names = [c.strip() for c in kept[0].decode("utf-8").split(",")]
     except UnicodeDecodeError:
