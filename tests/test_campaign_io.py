@@ -6,6 +6,7 @@ file and the column, line or key, and no output file written.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import signal
@@ -562,3 +563,43 @@ def test_header_of_many_duplicate_names_is_checked_in_linear_time(tiny_campaign,
     with deadline(30):
         err = identify_rejects(tiny_campaign, tmp_path, capsys, r"line 1\b", "duplicate column")
     assert len(err) < 400
+
+
+@pytest.mark.parametrize("value, pattern", [("0.5", "time not strictly increasing"), ("nan", "time is missing")])
+def test_every_command_refuses_a_corrupted_time_column_alike(tmp_path, capsys, value, pattern):
+    """identify, calibrate, validate and diagnose all read runs through read_run_file, so
+    they refuse the same corrupted axis with the same message (a campaign that each of
+    them would otherwise read: axle-box, bogie and track data)."""
+    from fuzz_mutants import RUN, calibration_json, write_base
+
+    root = write_base(tmp_path / "c")
+    path = root / RUN
+    lines = path.read_text().split("\n")
+    cells = lines[120].split(",")
+    cells[0] = value
+    lines[120] = ",".join(cells)
+    path.write_text("\n".join(lines))
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps(calibration_json()))
+    out = tmp_path / "out.json"
+    messages = set()
+    for args in (["identify", root], ["calibrate", root, "--runs", "1"], ["validate", root, "--calibration", cal],
+                 ["diagnose", root]):
+        code, _, err = run_cli([*args, "--out", out, "--quiet"], capsys)
+        assert code == 2 and not out.exists(), err
+        assert re.search(r"run_a\.csv, line 121, column 'time'", err) and pattern in err, err
+        messages.add(err)
+    assert len(messages) == 1
+
+
+def test_parquet_boolean_clipped_flags_and_a_stored_pandas_index_are_read(tmp_path):
+    def edit(table):
+        clipped = np.zeros(table.num_rows, bool)
+        clipped[[3, 4]] = True
+        df = table.to_pandas()
+        df["bogie1_acc_z_clipped"] = clipped
+        df.index = np.arange(table.num_rows) * 7  # not a RangeIndex: stored as a column
+        return pa.Table.from_pandas(df)
+    run = open_campaign(write_parquet_run(tmp_path, edit)).read_run("run_a")
+    assert np.flatnonzero(~run.valid["bogie1_acc_z"]).tolist() == [3, 4]
+    assert len(run) == 400

@@ -20,6 +20,9 @@ Choices where the spec leaves room:
   a file's content (:func:`~calibration.data.errors.excerpt`).
 * A CSV file may end its lines in LF, CRLF or CR alone (Excel's "CSV (Macintosh)"), and
   may start with a UTF-8 byte order mark.
+* Parquet columns are integers or floats; a boolean column is accepted only as a
+  ``<sensor>_clipped`` flag (its natural type there), never as data.
+* ``m/s2`` and ``m/s²`` are read as ``m/s^2`` (units.UNIT_ALIASES).
 * A NaN speed sample is a missing Doppler fix, accepted where a ``distance`` column
   locates the run; without one it would leave the run's position undefined, so it is an
   error. The time, distance and speed checks live in :func:`read_run_file`, so every
