@@ -50,7 +50,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .errors import CampaignError, excerpt
-from .units import BODIES, QUANTITIES, ROTATIONS, TRANSLATIONS, UNITS, canonical_unit, si_factor
+from .units import BODIES, QUANTITIES, ROTATIONS, TRANSLATIONS, UNIT_ALIASES, UNITS, canonical_unit, si_factor
 
 FORMAT = "railcal-campaign/1"
 KINDS = ("in_service", "stationary_excitation")
@@ -274,7 +274,7 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
         if name in ("time", "distance", "speed") or name.endswith("_clipped"):
             raise CampaignError(f"sensor name {_q(name)} is reserved", path=path, key=f"{key}.name")
         if name in seen:
-            raise CampaignError(f"sensor name '{name}' declared twice (also sensors[{seen[name]}])", path=path,
+            raise CampaignError(f"sensor name {_q(name)} declared twice (also sensors[{seen[name]}])", path=path,
                                 key=f"{key}.name")
         seen[name] = i
         q, unit = s["quantity"], canonical_unit(s["unit"])
@@ -282,7 +282,8 @@ def parse_meta(data: dict, path: Path) -> CampaignMeta:
             raise CampaignError(f"unknown quantity {_q(q)}; expected one of {', '.join(QUANTITIES)}", path=path,
                                 key=f"{key}.quantity")
         if unit not in UNITS:
-            raise CampaignError(f"unknown unit {_q(unit)}; expected one of {', '.join(UNITS)}", path=path,
+            raise CampaignError(f"unknown unit {_q(unit)}; expected one of {', '.join(UNITS)} (or "
+                                f"{', '.join(UNIT_ALIASES)} for m/s^2)", path=path,
                                 key=f"{key}.unit")
         if UNITS[unit][0] != q:
             raise CampaignError(f"unit {_q(unit)} is not a unit of {q}", path=path, key=f"{key}.unit")
