@@ -603,3 +603,14 @@ def test_parquet_boolean_clipped_flags_and_a_stored_pandas_index_are_read(tmp_pa
     run = open_campaign(write_parquet_run(tmp_path, edit)).read_run("run_a")
     assert np.flatnonzero(~run.valid["bogie1_acc_z"]).tolist() == [3, 4]
     assert len(run) == 400
+
+
+@pytest.mark.parametrize("ending", [b"\r", b"\r\n"])
+def test_track_band_is_read_after_a_byte_order_mark_and_any_line_ending(tiny_campaign, ending):
+    from calibration.data.campaign import read_track_file
+
+    (tiny_campaign / "track").mkdir()
+    path = tiny_campaign / "track" / "t.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + ending.join([b'# band = "D1"', b"distance,level", b"0,0.001", b"1,0.002", b""]))
+    rec = read_track_file(path)
+    assert rec.band == "D1" and rec.distance.tolist() == [0.0, 1.0]

@@ -425,7 +425,7 @@ def _read_csv(path: Path) -> _Table:
     if data.startswith(_BOM):
         data = data[len(_BOM):]
     elif data[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        raise CampaignError("UTF-16 text; save the file as UTF-8", path=path, line=1)
+        raise CampaignError("text in UTF-16 or UTF-32; save the file as UTF-8", path=path, line=1)
     n_cr = data.count(b"\r")
     if n_cr and n_cr != data.count(b"\r\n"):  # CR alone ends lines (Excel's "CSV (Macintosh)")
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
@@ -695,7 +695,7 @@ def read_track_file(path: Path) -> TrackRecording:
     path = Path(path)
     table = _read_csv(path)  # checks the file before anything is read
     band = "raw"
-    with open(path, "r", encoding="utf-8", errors="replace") as f:
+    with open(path, "r", encoding="utf-8-sig", errors="replace") as f:  # -sig: a BOM is not part of the line
         first = f.readline(200)
     m = re.match(r'^#\s*band\s*=\s*"?([A-Za-z0-9]+)"?', first.strip())
     if m:
