@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import traceback
 from pathlib import Path
 
 from .data.campaign import open_campaign
-from .data.outputs import write_json_atomic
+from .data.outputs import check_campaign_output, check_outputs, read_result, write_json_atomic, write_result
 from .data.errors import InputError
 from .models.parameters import CAR_PARAMETER_SPECS, ParameterError
 from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
@@ -21,7 +22,45 @@ from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows an option's default after its help unless the help already says it in words
+    (which options with a default of None do: "None" tells a user nothing)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if (not action.option_strings or "default" in text.lower()
+                or any(action.default is v for v in (None, False, argparse.SUPPRESS))):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+class _DeprecatedAlias(argparse.Action):
+    """An old option name that still works and says on stderr which name replaces it."""
+
+    def __init__(self, option_strings, dest, *, replacement: str, **kwargs):
+        self.replacement = replacement
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"railcal: warning: {option_string} is deprecated and will be removed; use {self.replacement}",
+              file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("railcal")
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "unknown (not installed)"
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):  # argparse's own usage errors are bad input too: exit 2
         self.print_usage(sys.stderr)
         print(f"railcal: error: {message}", file=sys.stderr)
@@ -38,9 +77,19 @@ def _seed(text: str) -> int:
     return value
 
 
+def _truth_path(campaign_dir) -> Path:
+    return Path(f"{Path(campaign_dir).resolve()}.truth.json")
+
+
+def _names(*paths) -> str:
+    """'a, b and c' of the files written (None: not written)."""
+    names = [str(p) for p in paths if p is not None]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
 def _truth_frequencies(campaign_dir) -> dict | None:
     """Frequencies from a synthetic campaign's truth beside it, for the plots; None otherwise."""
-    path = Path(f"{Path(campaign_dir).resolve()}.truth.json")
+    path = _truth_path(campaign_dir)
     if not path.is_file():
         return None
     try:
@@ -51,9 +100,12 @@ def _truth_frequencies(campaign_dir) -> dict | None:
 
 
 def _progress(args):
+    """Messages and counted bars on stderr (calibration/progress.py); None with --quiet."""
     if getattr(args, "quiet", False):
         return None
-    return lambda msg: print(msg, file=sys.stderr, flush=True)
+    from .progress import Progress
+
+    return Progress()
 
 
 # ------------------------------------------------------------------------------ synth
@@ -67,6 +119,7 @@ def cmd_synth_in_service(args) -> int:
         raise InputError(f"--journeys must be >= 1, got {args.journeys}", key="--journeys")
     if not 5.0 <= args.length_km <= 500.0:
         raise InputError(f"--length-km must be within 5..500 km, got {args.length_km}", key="--length-km")
+    check_campaign_output(args.out, overwrite=args.force)
     settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
                                  carbody_sensors=args.carbody_sensors)
     truth = synth_in_service(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
@@ -87,6 +140,7 @@ def cmd_synth_excitation(args) -> int:
     if not 20.0 * args.runs <= args.duration <= 7200.0:
         raise InputError(f"--duration must be within {20 * args.runs:g}..7200 s (at least 20 s per run), "
                          f"got {args.duration:g}", key="--duration")
+    check_campaign_output(args.out, overwrite=args.force)
     settings = ExcitationSettings(runs=args.runs, duration=args.duration)
     truth = synth_excitation(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
                              overwrite=args.force, progress=_progress(args))
@@ -104,20 +158,23 @@ def cmd_identify(args) -> int:
     from .identification.plots import plot_identification, plot_spectra
 
     campaign = open_campaign(args.campaign)
+    png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
+    second = png.with_name(png.stem + ("_mac.png" if campaign.meta.kind == "stationary_excitation" else "_spectra.png"))
+    check_outputs([args.out, png, second], inputs=[args.campaign, _truth_path(args.campaign)])
     if campaign.meta.kind == "stationary_excitation":
         return _identify_excitation(campaign, args)
     settings = IdentifySettings(fdd=FDDSettings(seed=args.seed))
     result = identify_in_service(campaign, settings=settings, progress=_progress(args))
     out = result.to_json()
-    png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
     plot_identification(result, png, truth=_truth_frequencies(args.campaign))
-    spectra = plot_spectra(result, png.with_name(png.stem + "_spectra.png"))
+    spectra = plot_spectra(result, second)
     out["plot"] = str(png)
     out["plot_spectra"] = None if spectra is None else str(spectra)
-    write_json_atomic(args.out, out)
+    write_result(args.out, out, "identification")
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
     print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected_peaks)} peaks rejected; "
-          f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote {args.out} and {png}")
+          f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote "
+          f"{_names(args.out, png, spectra)}")
     return EXIT_OK
 
 
@@ -129,7 +186,7 @@ def _identify_excitation(campaign, args) -> int:
     png, mac_png = out["plot"], out["plot_mac"]
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz ({100 * m.damping_ratio:.1f} %)" for m in result.modes)
     print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected)} peaks rejected; "
-          f"{result.frf.n_averages} Welch segments over {result.records} records; wrote {args.out}, {png}, {mac_png}")
+          f"{result.frf.n_averages} Welch segments over {result.records} records; wrote {_names(args.out, png, mac_png)}")
     return EXIT_OK
 
 
@@ -210,6 +267,11 @@ def _box_modes(args) -> dict:
 
 # -------------------------------------------------------------------------- calibrate
 def cmd_calibrate(args) -> int:
+    check_outputs([args.out], inputs=[args.campaign, args.targets, args.priors])
+    if args.model == "car2d" and args.method == "pso" and args.targets is not None and args.priors is None:
+        raise InputError("--method pso searches within a range for every parameter and there is no default "
+                         "for the 2D car (the seed's Table 7 gives no range for J_v and J_b): give the ranges "
+                         "with --priors P.toml ([NAME] nominal, low, high)", key="--priors")
     from .calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
 
     if args.model == "box":
@@ -228,7 +290,7 @@ def cmd_calibrate(args) -> int:
                                            progress=_progress(args))
         out = result.to_json()
         out["identified_modes"] = [m.to_json() for m in ident.modes]
-        write_json_atomic(args.out, out)
+        write_result(args.out, out, "calibration")
         print(f"calibrated to {len(result.targets)} identified modes: max error {result.max_error_pct:.3g} %; "
               f"{result.identifiability['summary']}; wrote {args.out}")
         return EXIT_OK
@@ -236,12 +298,13 @@ def cmd_calibrate(args) -> int:
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
     result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
                            seed=args.seed, refine_result=args.refine)
-    write_json_atomic(args.out, result.to_json())
+    write_result(args.out, result.to_json(), "calibration")
     refined = ""
     if result.refinement is not None:
         refined = (" after CasADi refinement" if result.refinement["improved"]
                    else " (refinement did not improve; global result kept)")
-    print(f"{args.method} x {args.runs} runs{refined}: max error {result.max_error_pct:.3g} %; "
+    within = "" if args.priors else " within the seed's Table 7 ranges (intercity trailer car)"
+    print(f"{args.method} x {args.runs} runs{within}{refined}: max error {result.max_error_pct:.3g} %; "
           f"{result.identifiability['summary']}; wrote {args.out}")
     return EXIT_OK
 
@@ -272,7 +335,7 @@ def _calibrate_box(args) -> int:
     else:
         result = _calibrate_box_targets(args, settings, swarms)
         out = result.to_json()
-    write_json_atomic(args.out, out)
+    write_result(args.out, out, "calibration")
     pso = result.pso
     runs = pso.get("swarms", ())
     ends = ", ".join(f"{r['end_max_error_pct']:.3g} %" for r in runs)
@@ -356,11 +419,10 @@ def _calibrate_box_targets(args, settings, swarms: int):
 def _read_calibration(path) -> dict:
     """A calibration file (railcal calibrate --out) with a parameters table, or exit 2."""
     path = Path(path)
-    try:
-        calibration = json.loads(path.read_text())
-        params = calibration["parameters"]
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise InputError(f"not a calibration result with 'parameters': {e}", path=path) from None
+    calibration = read_result(path, ("calibration", "diagnosis"))
+    if "parameters" not in calibration:
+        raise InputError("not a calibration result: no 'parameters'", path=path, key="parameters")
+    params = calibration["parameters"]
     if not isinstance(params, dict):
         raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", path=path,
                          key="parameters")
@@ -372,6 +434,7 @@ def cmd_validate(args) -> int:
     from .validation import plot_validation, validate
 
     path = Path(args.calibration)
+    check_outputs([args.out, Path(args.out).with_suffix(".png")], inputs=[args.campaign, path])
     calibration = _read_calibration(path)
     params = calibration["parameters"]
     campaign = open_campaign(args.campaign)
@@ -385,11 +448,11 @@ def cmd_validate(args) -> int:
     png = plot_validation(result, Path(args.out).with_suffix(".png"))
     out = result.to_json()
     out["plot"] = str(png)
-    write_json_atomic(args.out, out)
+    write_result(args.out, out, "validation")
     summary = "; ".join(f"{k}: NRMSE {v['nrmse']:.3f}, PSD {v['psd_log_error_db']:.2f} dB"
                         for k, v in out["channels"].items())
     print(f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-{result.band_m[1]:g} m): "
-          f"{summary}; wrote {args.out}")
+          f"{summary}; wrote {_names(args.out, png)}")
     return EXIT_OK
 
 
@@ -399,8 +462,9 @@ def cmd_diagnose(args) -> int:
 
     campaign = open_campaign(args.campaign)
     out_path = Path(args.out)
-    if out_path.is_dir():
-        raise InputError("is a folder; --out takes the JSON file to write", path=out_path)
+    stem = out_path.with_suffix("")
+    ends = ("_frf", "_mac") if campaign.meta.kind == "stationary_excitation" else ("_residual_psd", "_speed_map")
+    check_outputs([out_path, *(stem.with_name(stem.name + e + ".png") for e in ends)], inputs=[args.campaign])
     if campaign.meta.kind == "stationary_excitation":
         from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
 
@@ -410,11 +474,11 @@ def cmd_diagnose(args) -> int:
         result = diagnose(campaign, progress=_progress(args))
         result["plots"] = [str(p) for p in plot_diagnosis(result, out_path.with_suffix(""))]
     result.pop("_plot")
-    write_json_atomic(out_path, result)
+    write_result(out_path, result, "diagnosis")
     print(f"cause: {result['cause']}")
     for line in result["evidence"]["summary"]:
         print(f"  {line}")
-    print(f"wrote {out_path} and {len(result['plots'])} plots")
+    print(f"wrote {_names(out_path, *result['plots'])}")
     return EXIT_OK
 
 
@@ -428,10 +492,10 @@ def _validate_excitation(campaign, calibration: dict, args) -> int:
     png = plot_frf_comparison(result, Path(args.out).with_suffix(".png"))
     out = result.to_json()
     out["plot"] = str(png)
-    write_json_atomic(args.out, out)
+    write_result(args.out, out, "validation")
     print(f"FRF from the exciter to {len(result.sensors)} accelerometers over {result.band[0]:g}-{result.band[1]:g} Hz: "
           f"FRAC median {out['frac_median']:.3f}, min {out['frac_min']:.3f}; log-magnitude error up to "
-          f"{result.log_error_db.max():.2f} dB rms; wrote {args.out} and {png}")
+          f"{result.log_error_db.max():.2f} dB rms; wrote {_names(args.out, png)}")
     return EXIT_OK
 
 
@@ -439,8 +503,12 @@ def _validate_excitation(campaign, calibration: dict, args) -> int:
 def cmd_demo(args) -> int:
     from .demo import run_demo
 
+    out = Path(args.out)
+    if os.path.lexists(out) and not out.is_dir():
+        raise InputError("exists and is not a folder; --out takes the folder to write the demo into", path=out,
+                         key="--out")
     report = run_demo(Path(args.out), progress=_progress(args))
-    print(f"demo finished: report {report}")
+    print(f"demo finished: report {report}; wrote its results, figures and FMUs into {args.out}")
     return EXIT_OK
 
 
@@ -449,6 +517,7 @@ def cmd_export_fmu(args) -> int:
     from fmu_src.build import BuildError
     from fmu_src.export import export_fmu
 
+    check_outputs([args.out], inputs=[args.calibration, args.track, args.campaign])
     calibration = _read_calibration(args.calibration)
     campaign = open_campaign(args.campaign) if args.campaign else None
     try:
@@ -474,6 +543,8 @@ def cmd_crosscheck(args) -> int:
     if model not in ("car2d", "box"):
         raise InputError(f"crosscheck covers car2d and box calibrations, not {model!r}", path=Path(args.calibration),
                          key="model")
+    png = Path(args.out).with_suffix(".png") if model == "car2d" else None  # the box cross-check draws no figure
+    check_outputs([args.out, png], inputs=[args.calibration, args.track])
     if not (args.speed > 0 and args.duration > 0):
         raise InputError("--speed and --duration must be positive", key="--speed")
     if model == "box":
@@ -485,23 +556,23 @@ def cmd_crosscheck(args) -> int:
     distance, level = _track_for_crosscheck(args)
     try:
         report = crosscheck_car(p, distance, level, speed=args.speed, duration=args.duration,
-                                with_fmu=not args.no_fmu, plot=Path(args.out).with_suffix(".png"))
+                                with_fmu=not args.no_fmu, plot=png)
     except ValueError as e:
-        raise InputError(str(e), path=Path(args.profile) if args.profile else None) from None
-    write_json_atomic(args.out, report)
+        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
+    write_result(args.out, report, "crosscheck")
     e, t = report["eigen"], report["time"]
     print(f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped eigenvalues "
           f"{e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst NRMSE "
           f"{t['worst_nrmse']:.1e} (exudyn, railcal{'' if args.no_fmu else ', FMU'}); verdict {report['verdict']} "
-          f"(wall time {report['wall_time_s']:.1f} s, not judged); wrote {args.out}")
+          f"(wall time {report['wall_time_s']:.1f} s, not judged); wrote {_names(args.out, report.get('plot'))}")
     return EXIT_OK
 
 
 def _track_for_crosscheck(args):
     from .data.campaign import read_track_file
 
-    if args.profile:
-        rec = read_track_file(Path(args.profile))
+    if args.track:
+        rec = read_track_file(Path(args.track))
         return rec.distance, rec.level
     from fmu_src.reference import smooth_profile  # a synthetic track: German low-disturbance spectrum, 3-70 m
 
@@ -517,8 +588,8 @@ def _crosscheck_box(calibration: dict, args) -> int:
         report = crosscheck_box(calibration, distance, level, speed=args.speed, duration=args.duration,
                                 with_fmu=not args.no_fmu)
     except ValueError as e:
-        raise InputError(str(e), path=Path(args.profile) if args.profile else None) from None
-    write_json_atomic(args.out, report)
+        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
+    write_result(args.out, report, "crosscheck")
     e, t = report["eigen"], report["time"]
     print(f"exudyn vs railcal (box): frequencies below 20 Hz {e['max_relative_error_vs_reduced']:.1e} (reduced), "
           f"{e['max_relative_error_vs_full']:.1e} (full model); {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst "
@@ -530,6 +601,7 @@ def _crosscheck_box(calibration: dict, args) -> int:
 # ------------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="railcal", description="Calibrate railway vehicle vibration models from measured data.")
+    p.add_argument("--version", action="version", version=f"railcal {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     synth = sub.add_parser("synth", help="write a synthetic campaign and its truth")
@@ -537,31 +609,34 @@ def build_parser() -> argparse.ArgumentParser:
 
     def synth_parser(name, help, func):  # what every synthetic campaign takes
         s = ssub.add_parser(name, help=help)
-        s.add_argument("out", help="campaign folder to create")
-        s.add_argument("--seed", type=_seed, default=0)
-        s.add_argument("--format", choices=("csv", "parquet"), default="csv")
-        s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE]")
-        s.add_argument("--force", action="store_true", help="replace an existing folder")
-        s.add_argument("--quiet", action="store_true")
+        s.add_argument("out", help="campaign folder to create (its truth goes beside it, as OUT.truth.json)")
+        s.add_argument("--seed", type=_seed, default=0, help="seed of every random draw")
+        s.add_argument("--format", choices=("csv", "parquet"), default="csv", help="run file format")
+        s.add_argument("--effect", default=None, help="hidden physical effect NAME[=MAGNITUDE] "
+                       "(default: none, the model's own physics only)")
+        s.add_argument("--force", action="store_true", help="replace a campaign railcal wrote there before (and "
+                       "its truth file); a folder railcal did not write is never removed")
+        s.add_argument("--quiet", action="store_true", help="no progress on stderr")
         s.set_defaults(func=func)
         return s
 
     s = synth_parser("in-service", "in-service journeys (bogie and axle-box sensors)", cmd_synth_in_service)
-    s.add_argument("--journeys", type=int, default=10)
+    s.add_argument("--journeys", type=int, default=10, help="number of journeys (run files)")
     s.add_argument("--length-km", type=float, default=40.0, help="length of the line [km]")
     s.add_argument("--carbody-sensors", action="store_true",
                    help="add floor accelerometers above both bogies and at the car centre")
     s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")
-    s.add_argument("--runs", type=int, default=2)
+    s.add_argument("--runs", type=int, default=2, help="number of test runs (run files)")
 
     s = sub.add_parser("identify", help="modal identification of a campaign")
-    s.add_argument("campaign")
-    s.add_argument("--out", required=True, help="JSON result")
-    s.add_argument("--plot", default=None, help="PNG (default: beside --out)")
+    s.add_argument("campaign", help="campaign folder")
+    s.add_argument("--out", required=True, help="JSON result to write")
+    s.add_argument("--plot", default=None, help="PNG of the identification; a second figure goes beside it "
+                   "(default: --out with .png)")
     s.add_argument("--seed", type=_seed, default=0, help="seed of the random segment draw")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_identify)
 
     s = sub.add_parser("modes", help="eigen-analysis of a model")
@@ -569,73 +644,91 @@ def build_parser() -> argparse.ArgumentParser:
                    help="model to analyse: the 2D car or the box-type vehicle (Shinkansen-type carbody)")
     s.add_argument("--vehicle", choices=("intercity", "manchester"), default="intercity",
                    help="base parameter set: the seed's intercity trailer or the Manchester benchmark coach")
-    s.add_argument("--param", action="append", metavar="NAME=VALUE")
+    s.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="set one parameter [SI units] (box: a stiffness factor, nominal 1), repeatable (default: "
+                        "none, the --vehicle set as it is)")
     s.add_argument("--max-hz", type=float, default=25.0, help="box model: modes below this [Hz]")
-    s.add_argument("--out", default=None)
+    s.add_argument("--out", default=None, help="JSON result to write (default: none, the summary only)")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_modes)
 
     s = sub.add_parser("calibrate", help="parameters from target frequencies (global search + identifiability)")
-    s.add_argument("campaign", nargs="?", default=None)
-    s.add_argument("--targets", default=None, help="TOML with [[targets]] label, frequency_hz")
-    s.add_argument("--priors", default=None, help="TOML with [NAME] nominal, low, high (default: seed Table 7)")
-    s.add_argument("--model", choices=("car2d", "box"), default="car2d")
-    s.add_argument("--method", choices=("ce", "pso"), default="ce")
-    s.add_argument("--objective", choices=("sse", "max_rel"), default="sse")
-    s.add_argument("--runs", type=int, default=10)
+    s.add_argument("campaign", nargs="?", default=None,
+                   help="campaign folder to identify and calibrate to (or give --targets)")
+    s.add_argument("--targets", default=None, help="TOML with [[targets]] label, frequency_hz (default: none; give this or a "
+                   "CAMPAIGN)")
+    s.add_argument("--priors", default=None,
+                   help="with --targets: TOML with [NAME] nominal, low, high (default: with --model car2d --method "
+                        "ce the in-service seed's Table 7 ranges of the intercity trailer car; --method pso needs "
+                        "this file; with --model box each factor's own range); a campaign brings its own priors")
+    s.add_argument("--model", choices=("car2d", "box"), default="car2d", help="model to calibrate")
+    s.add_argument("--method", choices=("ce", "pso"), default="ce",
+                   help="global search: Cross-Entropy or particle swarm")
+    s.add_argument("--objective", choices=("sse", "max_rel"), default="sse",
+                   help="car2d: sum of squared relative errors or the largest relative error")
+    s.add_argument("--runs", type=int, default=10, help="car2d: independent search runs, averaged")
     s.add_argument("--particles", type=int, default=1000, help="box model: swarm size (RTRI seed: 1000)")
     s.add_argument("--iterations", type=int, default=1000, help="box model: iteration cap (RTRI seed: 1000)")
     s.add_argument("--stop-pct", type=float, default=0.5, help="box model: stop at this evaluation value [%%]")
     s.add_argument("--swarms", type=int, default=None,
                    help="box model: split the particles into this many independent swarms, each refined as it "
                         "ends, the best kept; with --refine no further swarm once one ends within the done "
-                        f"error (--targets: the stop, {TYPED_SWARMS} swarms; a campaign: {CAMPAIGN_DONE_PCT:g} %%, "
-                        f"{CAMPAIGN_SWARMS} swarms)")
-    s.add_argument("--refine", action="store_true", help="constrained refinement (CasADi/IPOPT) after the search")
+                        f"error (default: {TYPED_SWARMS} swarms with --targets, done at the stop; "
+                        f"{CAMPAIGN_SWARMS} swarms with a campaign, done at {CAMPAIGN_DONE_PCT:g} %%)")
+    s.add_argument("--refine", action="store_true",
+                   help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--factors", default=None, metavar="SET",
                    help="box model: the factor set searched, grouped or credible (default: credible with "
                         "--targets, grouped with a campaign, the truth simulator's factors)")
-    s.add_argument("--seed", type=_seed, default=0)
-    s.add_argument("--out", required=True)
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--seed", type=_seed, default=0, help="seed of the search")
+    s.add_argument("--out", required=True, help="calibration JSON to write")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("validate", help="simulate the runs over the track recording and compare")
-    s.add_argument("campaign")
+    s.add_argument("campaign", help="campaign folder")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
-    s.add_argument("--out", required=True)
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--out", required=True, help="JSON result to write (the plot goes beside it, .png)")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_validate)
 
     s = sub.add_parser("diagnose", help="find what the model gets wrong on a campaign, name the cause, "
                        "extend the model and measure the gain")
-    s.add_argument("campaign")
+    s.add_argument("campaign", help="campaign folder")
     s.add_argument("--out", required=True, help="JSON to write (plots go beside it)")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_diagnose)
 
     s = sub.add_parser("export-fmu", help="build an FMI co-simulation FMU of a calibrated model")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
-    s.add_argument("--fmi-version", type=int, choices=(2, 3), default=2)
-    s.add_argument("--track", default=None, help="track recording CSV (distance, level) for stand-alone running")
-    s.add_argument("--campaign", default=None, help="campaign whose accelerometers become extra outputs")
+    s.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of the FMU")
+    s.add_argument("--track", default=None, help="track recording CSV (distance, level) for stand-alone running "
+                   "(default: none, the rail inputs come from the importer)")
+    s.add_argument("--campaign", default=None,
+                   help="campaign whose accelerometers become extra outputs (default: none)")
     s.add_argument("--cutoff-hz", type=float, default=None,
-                   help="box model: carbody modes kept below this [Hz] (default 100), the rest statically corrected")
+                   help="box model: carbody modes kept below this [Hz] (default: 100), the rest statically corrected")
     s.add_argument("--out", required=True, help="the .fmu to write")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_export_fmu)
 
     s = sub.add_parser("crosscheck", help="exudyn re-computation against railcal's model and its FMU")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
-    s.add_argument("--profile", default=None, help="track recording CSV (distance, level); default: synthetic")
-    s.add_argument("--speed", type=float, default=40.0, help="[m/s]")
+    s.add_argument("--track", default=None, help="track recording CSV (distance, level) (default: a synthetic "
+                   "track, German low-disturbance spectrum, 3-70 m)")
+    s.add_argument("--profile", dest="track", action=_DeprecatedAlias, replacement="--track",
+                   help="deprecated name of --track")
+    s.add_argument("--speed", type=float, default=40.0, help="running speed [m/s]")
     s.add_argument("--duration", type=float, default=10.0,
                    help="[s] of simulated time (the wall time counts in the verdict: 30 s per 10 s simulated)")
     s.add_argument("--no-fmu", action="store_true", help="leave the FMU out (no C compiler)")
-    s.add_argument("--out", required=True)
+    s.add_argument("--out", required=True, help="JSON result to write (car2d: the plot goes beside it, .png)")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_crosscheck)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
-    s.add_argument("--out", default="demo_output")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--out", default="demo_output", help="folder to write the demo's results into")
+    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_demo)
     return p
 

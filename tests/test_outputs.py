@@ -25,6 +25,24 @@ def _write(root, overwrite=False):
     return root
 
 
+def special_files(folder):
+    """A FIFO and, where allowed, a character device with /dev/null's numbers, in ``folder``:
+    a regression then replaces these, never the system's own /dev/null."""
+    fifo = folder / "pipe"
+    os.mkfifo(fifo)
+    made = [fifo]
+    try:
+        os.mknod(folder / "null", stat.S_IFCHR | 0o666, os.makedev(1, 3))
+        made.append(folder / "null")
+    except OSError:  # not root: the FIFO covers the same check
+        pass
+    return made
+
+
+def still_special(paths):
+    return all(stat.S_ISFIFO(os.stat(p).st_mode) or stat.S_ISCHR(os.stat(p).st_mode) for p in paths)
+
+
 @pytest.fixture
 def umask_022():
     old = os.umask(0o022)
@@ -38,9 +56,12 @@ def test_the_current_folder_and_its_parents_are_never_a_campaign_target(tmp_path
     work.mkdir()
     (work / "precious.txt").write_text("keep")
     monkeypatch.chdir(work)
+    # a pure check for the root and home, so that a regression here cannot remove them
     for target in (".", "..", str(work), os.sep, os.path.expanduser("~")):
         with pytest.raises(InputError, match="current folder"):
-            CampaignWriter(target, tiny_meta(), overwrite=True)
+            check_campaign_output(target, overwrite=True)
+    with pytest.raises(InputError, match="current folder"):
+        CampaignWriter(".", tiny_meta(), overwrite=True)
     assert (work / "precious.txt").read_text() == "keep"
     assert sorted(p.name for p in work.iterdir()) == ["precious.txt"]
 
@@ -117,12 +138,10 @@ def test_output_checks_refuse_folders_devices_inputs_and_duplicates(tmp_path):
     cal.write_text("{}")
     with pytest.raises(InputError, match="is a folder"):
         check_outputs([tmp_path])
-    with pytest.raises(InputError, match="not a regular file.*device"):
-        check_outputs(["/dev/null"])
-    fifo = tmp_path / "fifo"
-    os.mkfifo(fifo)
-    with pytest.raises(InputError, match="not a regular file"):
-        check_outputs([fifo])
+    specials = special_files(tmp_path)
+    for special in specials:
+        with pytest.raises(InputError, match="not a regular file.*device, FIFO"):
+            check_outputs([special])
     with pytest.raises(InputError, match="an input of this command") as e:
         check_outputs([campaign / "campaign.toml"], inputs=[campaign])
     assert "campaign.toml" in str(e.value)
@@ -134,7 +153,7 @@ def test_output_checks_refuse_folders_devices_inputs_and_duplicates(tmp_path):
     with pytest.raises(InputError, match="not a folder"):
         check_outputs([tmp_path / "file" / "out.json"])
     assert check_outputs([tmp_path / "new" / "deeper" / "out.json", None]) == [tmp_path / "new" / "deeper" / "out.json"]
-    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    assert still_special(specials)
 
 
 # --------------------------------------------------------------------- atomic files
@@ -169,9 +188,11 @@ def test_writers_never_replace_a_device_or_folder(tmp_path):
     (tmp_path / "d").mkdir()
     with pytest.raises(InputError, match="not a regular file"):
         write_json_atomic(tmp_path / "d", {})
-    with pytest.raises(InputError, match="not a regular file"):
-        write_json_atomic("/dev/null", {})
-    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    specials = special_files(tmp_path)
+    for special in specials:
+        with pytest.raises(InputError, match="not a regular file"):
+            write_json_atomic(special, {})
+    assert still_special(specials)
 
 
 # ------------------------------------------------------------------- result formats
