@@ -28,6 +28,7 @@ import scipy.signal
 
 from ..data.campaign import Campaign
 from .peaks import parabolic_shift
+from .resample import is_regular, regular_run, to_uniform_grid
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,8 @@ class SpectralLine:
     kind: str  # 'speed_dependent' | 'speed_independent' | 'ambiguous'
     frequency_hz: float | None  # tones: the frequency; speed-dependent: at the median speed
     wavelength_m: float | None  # speed-dependent: v / f
-    exponent: float  # fitted alpha in f ~ v^alpha
-    exponent_stderr: float
+    exponent: float | None  # fitted alpha in f ~ v^alpha; None where the speeds are too close to fit it
+    exponent_stderr: float | None
     channels: tuple[str, ...]
     prominence_db: float
     n_windows: int
@@ -102,6 +103,7 @@ class LineWindowCollector:
         """Windows of this run; sampled at the run's own rate (its time column is
         authoritative), spectra put on the collector's frequency grid."""
         st = self.settings
+        run = regular_run(run, self.fs)
         fs = 1.0 / float(np.median(np.diff(run.time)))
         if abs(fs / self.fs - 1) < 1e-6:
             fs = self.fs
@@ -124,9 +126,9 @@ class LineWindowCollector:
                 continue
             if not all(run.valid[ch][s0:s0 + n].all() for ch in self.channels):
                 continue
-            if np.ptp(np.diff(run.time[s0:s0 + n])) > 1e-3 / fs:
-                continue  # irregular sampling: a window needs evenly spaced samples
             X = np.vstack([run.channels[ch][s0:s0 + n] for ch in self.channels])
+            if not is_regular(run.time[s0:s0 + n], fs):  # Welch needs evenly spaced samples
+                _, X = to_uniform_grid(run.time[s0:s0 + n], X, fs, axis=1)
             f, P_si = scipy.signal.welch(X, fs=fs, nperseg=nper, detrend="linear", axis=1)
             if self.f is None:
                 self.f = f
@@ -269,7 +271,9 @@ def _classify(f, windows, channels, settings: LineSettings) -> list[SpectralLine
         sp = np.array([x[0] for x in found])
         fr = np.array([x[1] for x in found])
         if sp.max() / sp.min() < settings.min_speed_ratio:
-            kind, alpha, se = "ambiguous", float("nan"), float("nan")
+            # over so narrow a speed range f ~ v^alpha has no usable slope: the exponent is
+            # undetermined (None), not a number, and the line cannot be called either kind
+            kind, alpha, se = "ambiguous", None, None
         else:
             X = np.column_stack([np.log(sp), np.ones(sp.size)])
             coef, res, *_ = np.linalg.lstsq(X, np.log(fr), rcond=None)
@@ -303,6 +307,10 @@ def _classify(f, windows, channels, settings: LineSettings) -> list[SpectralLine
                     text += ": not a vehicle mode (instrument or electrical pick-up)"
                 else:
                     text += ": a candidate vehicle mode (present at every speed on several sensors)"
+            elif alpha is None:
+                text = (f"seen only at {sp.min():.1f}-{sp.max():.1f} m/s: too narrow a speed range to tell a "
+                        f"fixed tone from track excitation (needs a fastest/slowest ratio of "
+                        f"{settings.min_speed_ratio:g})")
             else:
                 text = "neither fixed nor proportional to speed"
         lines.append(SpectralLine(kind, freq, wavelength, alpha, se, present, prominence, len(found),
