@@ -33,6 +33,7 @@ import scipy.signal
 
 from ..data.campaign import Campaign, CampaignMeta, Run
 from ..signals.filters import SEED_BAND_HZ, SEED_ORDER, bandpass
+from ..signals.resample import is_regular, regular_run, to_uniform_grid
 
 
 @dataclass(frozen=True)
@@ -344,15 +345,20 @@ def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, sett
     hi = bad[bad >= i1 - p0].min() if (bad >= i1 - p0).any() else p1 - p0
     x = x[:, lo:hi]
     t = run.time[p0 + lo:p0 + hi]
-    if np.ptp(np.diff(t)) > 1e-3 / fs:  # irregular sampling inside a block: uniform grid
-        t_uniform = t[0] + np.arange(int((t[-1] - t[0]) * fs) + 1) / fs
-        x = np.vstack([np.interp(t_uniform, t, row) for row in x])
+    frac = Fraction(settings.fs_analysis / fs).limit_denominator(1000)
+    if not is_regular(t, fs) or abs(fs * frac / settings.fs_analysis - 1) > 1e-9:
+        # Irregular sampling (the time column is authoritative), or a rate with no small
+        # rational ratio to fs_analysis: spline the block onto a grid at a multiple of
+        # fs_analysis near the recorded rate, so that every segment ends on exactly
+        # fs_analysis and all share one frequency grid (their spectra are summed).
+        ratio = max(1, round(fs / settings.fs_analysis))
+        fs = settings.fs_analysis * ratio
+        t, x = to_uniform_grid(t, x, fs, axis=1)
+        frac = Fraction(1, ratio)
     x = x - x.mean(axis=1, keepdims=True)
     xf = bandpass(x, fs, settings.band, order=settings.order, axis=1)
-    frac = Fraction(settings.fs_analysis / fs).limit_denominator(1000)
     xr = scipy.signal.resample_poly(xf, frac.numerator, frac.denominator, axis=1) if frac != 1 else xf
-    exact = frac == Fraction(settings.fs_analysis / fs)
-    fs_a = settings.fs_analysis if exact else fs * frac.numerator / frac.denominator
+    fs_a = settings.fs_analysis
     # the validated samples [i0, i1) by their times, on the resampled grid
     a = int(round((run.time[i0] - t[0]) * fs_a))
     b = min(xr.shape[1], int(round((run.time[i1 - 1] - t[0]) * fs_a)) + 1)
@@ -404,6 +410,7 @@ class SegmentalFDDAccumulator:
     def add_run(self, run: Run) -> int:
         """Process the planned segments of this run; returns how many were used."""
         st = self.settings
+        run = regular_run(run, self.meta.sampling_rate)
         d = distance_axis(run.distance, run.speed, run.time)
         used = 0
         for k, seg in self.by_run.get(run.run_id, []):
