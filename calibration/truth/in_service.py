@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.interpolate
 import scipy.signal
 
 from ..data.campaign import CampaignMeta, Prior, Sensor
@@ -77,6 +78,13 @@ class InServiceSettings:
     nan_probability: float = 0.3  # per journey: a 0.2 s NaN burst in one channel
     carbody_sensors: bool = False  # floor accelerometers above the bogies and at the centre
     carbody_acc_noise: float = 0.02  # [m/s^2] rms
+    # a test ride: every journey at one speed drawn from speed_range (a narrow range puts
+    # them all at nearly the same speed), instead of speed varying along the line
+    constant_speed: bool = False
+    # [s] the logger samples at t_k + u_k, u_k uniform in +-time_jitter, and records those
+    # instants in the time column (irregular sampling, campaign-format.md); drawn from a
+    # generator of its own so the campaign is otherwise the one without jitter
+    time_jitter: float = 0.0
     chunk: int = 1 << 17
 
     def __post_init__(self):
@@ -85,6 +93,9 @@ class InServiceSettings:
         lo, hi = self.speed_range
         if not 0 < lo < hi:
             raise ValueError(f"speed range {self.speed_range} must satisfy 0 < low < high")
+        if not 0 <= self.time_jitter < 0.5 / self.fs:
+            raise ValueError(f"time_jitter {self.time_jitter} s must lie in [0, half a sample interval "
+                             f"{0.5 / self.fs} s) so that the time column stays strictly increasing")
 
 
 # --------------------------------------------------------------------------- sensors
@@ -205,14 +216,18 @@ def campaign_priors(settings: InServiceSettings) -> dict[str, Prior]:
 
 
 # -------------------------------------------------------------------------- journeys
-def speed_profile(s: np.ndarray, rng: np.random.Generator, speed_range: tuple[float, float]) -> np.ndarray:
+def speed_profile(s: np.ndarray, rng: np.random.Generator, speed_range: tuple[float, float], *,
+                  constant: bool = False) -> np.ndarray:
     """Speed [m/s] along distance ``s`` [m]: a cruise speed per journey plus smooth
     variations over kilometres (speed restrictions, gradients), kept inside the range
-    with a soft limit so the acceleration stays below about 0.5 m/s^2."""
+    with a soft limit so the acceleration stays below about 0.5 m/s^2. With ``constant``
+    the cruise speed alone, held over the whole journey."""
     lo, hi = speed_range
     mid, half = (lo + hi) / 2, (hi - lo) / 2
     cruise = rng.uniform(lo + 0.2 * half, hi - 0.2 * half)
     v = np.full_like(s, cruise)
+    if constant:
+        return v
     for _ in range(6):
         wavelength = rng.uniform(2_000.0, 15_000.0)
         v += rng.uniform(0.5, 2.5) * np.sin(2 * np.pi * s / wavelength + rng.uniform(0, 2 * np.pi))
@@ -241,15 +256,17 @@ class JourneyTruth:
 
 
 def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sensor, ...],
-                     settings: InServiceSettings, rng: np.random.Generator) -> tuple[dict, JourneyTruth]:
-    """One journey over the whole line: returns raw columns (sensor units) and its truth."""
+                     settings: InServiceSettings, rng: np.random.Generator,
+                     jitter_rng: np.random.Generator | None = None) -> tuple[dict, JourneyTruth]:
+    """One journey over the whole line: returns raw columns (sensor units) and its truth.
+    ``jitter_rng`` draws the sample-time jitter when ``settings.time_jitter`` > 0."""
     fs = settings.fs
     p = car.parameters
     xw = wheelset_positions(p)
     s_start = max(0.0, float(xw.max()) - line.s_min + 1.0) if line.s_min > -1 else 0.0
     s_end = line.spec.length
     s_grid = np.arange(s_start, s_end, 1.0)
-    v_grid = speed_profile(s_grid, rng, settings.speed_range)
+    v_grid = speed_profile(s_grid, rng, settings.speed_range, constant=settings.constant_speed)
     t_grid = np.concatenate([[0.0], np.cumsum(np.diff(s_grid) / (0.5 * (v_grid[1:] + v_grid[:-1])))])
     n = int(t_grid[-1] * fs)
     t = np.arange(n) / fs
@@ -268,18 +285,33 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
     index = {o.name: k for k, o in enumerate(outputs)}
     sim = ModalSimulator(state_space(car.assembly, outputs), 1.0 / fs, x0="static")
     y_all = np.empty((n, len(outputs)))
-    axle = {x.name: np.empty(n) for x in sensors if x.body.startswith("axle")}
     for a in range(0, n, settings.chunk):
         b = min(n, a + settings.chunk)
-        sc, vc, ac = s[a:b], v[a:b], acc_train[a:b]
+        sc, vc = s[a:b], v[a:b]
         w = np.empty((b - a, 8))
         for j in range(4):
             z, dz, _ = line.level(sc + xw[j])
             r, dr, _ = car.wheel_deviation(j, sc)
             w[:, j] = z + r
             w[:, 4 + j] = vc * (dz + dr)
-        y = sim.step_chunk(w)
-        y_all[a:b] = y
+        y_all[a:b] = sim.step_chunk(w)
+    t_true, s_m, v_m, acc_m = t, s, v, acc_train  # the instants sampled, where the train was then
+    if settings.time_jitter > 0:
+        # the motion is simulated on the uniform grid (exact stepping needs one step size)
+        # and read at the instants actually sampled by a cubic spline, exact to ~1e-4 of the
+        # amplitude up to 50 Hz at 500 Hz; the axle boxes, functions of the rail under the
+        # wheel, are evaluated there exactly (a spline would smear the weld impulses)
+        jitter_rng = rng if jitter_rng is None else jitter_rng
+        t_true = t + jitter_rng.uniform(-settings.time_jitter, settings.time_jitter, n)
+        t_true[0], t_true[-1] = t[0], t[-1]  # stay inside the simulated interval
+        y_all = scipy.interpolate.CubicSpline(t, y_all, axis=0)(t_true)
+        s_m = np.interp(t_true, t_grid, s_grid)
+        v_m = np.interp(s_m, s_grid, v_grid)
+        acc_m = v_m * np.interp(s_m, s_grid, np.gradient(v_grid, s_grid))
+    axle = {x.name: np.empty(n) for x in sensors if x.body.startswith("axle")}
+    for a in range(0, n, settings.chunk):
+        b = min(n, a + settings.chunk)
+        sc, vc, ac = s_m[a:b], v_m[a:b], acc_m[a:b]
         for x in sensors:
             if x.body.startswith("axle"):
                 j = int(x.body[4:]) - 1
@@ -287,7 +319,8 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
                 if flexible:  # the wheelset's own motion, plus the rails' cross level (rigid in roll)
                     _, dz0, d2z0 = line.level(sc + x.position[0])
                     _, dz1, d2z1 = line.level(sc + x.position[0], side=side)
-                    axle[x.name][a:b] = y[:, index[f"wheelset{j + 1}"]] + vc * vc * (d2z1 - d2z0) + ac * (dz1 - dz0)
+                    axle[x.name][a:b] = (y_all[a:b, index[f"wheelset{j + 1}"]] + vc * vc * (d2z1 - d2z0)
+                                         + ac * (dz1 - dz0))
                 else:
                     _, dz, d2z = line.level(sc + x.position[0], side=side)
                     _, dr, d2r = car.wheel_deviation(j, sc)
@@ -296,14 +329,14 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
     pitch_rate = y_all[:, index["bogie1_pitch_rate"]]
 
     g = STANDARD_GRAVITY
-    cols: dict[str, np.ndarray] = {"time": t}
+    cols: dict[str, np.ndarray] = {"time": t_true}
     # GPS: 5 Hz fixes of distance (wandering error + jitter) and Doppler speed
     t_fix = np.arange(0.0, t[-1] + 1.0 / settings.gps_rate, 1.0 / settings.gps_rate)
     s_fix = np.interp(t_fix, t, s) + _ou(t_fix.size, 1 / settings.gps_rate, 30.0, settings.gps_error, rng) \
         + rng.normal(0, settings.gps_jitter, t_fix.size)
-    cols["distance"] = np.maximum.accumulate(np.interp(t, t_fix, s_fix))
+    cols["distance"] = np.maximum.accumulate(np.interp(t_true, t_fix, s_fix))
     v_fix = np.interp(t_fix, t, v) + rng.normal(0, settings.speed_noise, t_fix.size)
-    cols["speed"] = np.interp(t, t_fix, v_fix)
+    cols["speed"] = np.interp(t_true, t_fix, v_fix)
     for x in sensors:
         if x.body.startswith("axle"):
             cols[x.name] = (axle[x.name] + rng.normal(0, settings.axle_acc_noise, n)) / g + 1.0
@@ -313,7 +346,7 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
             cols[x.name] = (y_all[:, index[x.name]] + rng.normal(0, settings.carbody_acc_noise, n)) / g + 1.0
     offset = rng.uniform(-settings.gyro_offset_raw, settings.gyro_offset_raw)
     drift = _ou(n, 1 / fs, 600.0, settings.gyro_drift_raw, rng)
-    tone = settings.gyro_tone_raw * np.sin(2 * np.pi * settings.gyro_tone_hz * t + rng.uniform(0, 2 * np.pi))
+    tone = settings.gyro_tone_raw * np.sin(2 * np.pi * settings.gyro_tone_hz * t_true + rng.uniform(0, 2 * np.pi))
     gyro = next(x for x in sensors if x.name == "bogie1_gyro_pitch")
     cols["bogie1_gyro_pitch"] = (np.degrees(pitch_rate) / gyro.scale + offset + drift + tone
                                  + rng.normal(0, settings.gyro_noise_raw, n))
@@ -323,14 +356,14 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
         ch = str(rng.choice([x.name for x in sensors]))
         i0 = int(rng.integers(0, n - int(0.2 * fs)))
         cols[ch][i0:i0 + int(0.2 * fs)] = np.nan
-        nan_bursts.append({"channel": ch, "time": float(t[i0]), "duration": 0.2})
+        nan_bursts.append({"channel": ch, "time": float(t_true[i0]), "duration": 0.2})
     keep = np.ones(n, bool)
     gaps = []
     if rng.uniform() < settings.gap_probability:
         i0 = int(rng.integers(int(0.1 * n), int(0.9 * n)))
         length = int(rng.uniform(1.0, 4.0) * fs)
         keep[i0:i0 + length] = False
-        gaps.append({"after_time": float(t[i0 - 1]), "before_time": float(t[min(n - 1, i0 + length)])})
+        gaps.append({"after_time": float(t_true[i0 - 1]), "before_time": float(t_true[min(n - 1, i0 + length)])})
     cols = {k: c[keep] for k, c in cols.items()}
     truth = JourneyTruth(run_id, float(v.mean()), float(v.min()), float(v.max()), float(t[-1]), gaps,
                          nan_bursts, float(offset))
@@ -373,10 +406,11 @@ def synth_in_service(out, *, seed: int = 0, settings: InServiceSettings = InServ
                   "length": 23.0, "width": 2.85, "height": 3.8},
         priors=campaign_priors(settings))
     journeys = []
+    jitter_rng = np.random.default_rng([seed, 11])
     with CampaignWriter(out, meta, fmt=fmt, overwrite=overwrite) as w:
         for k in range(settings.journeys):
             run_id = f"journey_{k + 1:03d}"
-            cols, jt = simulate_journey(run_id, line, car, sensors, settings, rng)
+            cols, jt = simulate_journey(run_id, line, car, sensors, settings, rng, jitter_rng)
             w.write_run(run_id, cols)
             journeys.append(jt.__dict__)
             if progress:
