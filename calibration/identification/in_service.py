@@ -60,6 +60,13 @@ class IdentifySettings:
     # 200 (random, possibly overlapping, from all runs). On the demo campaign the carbody
     # bounce error went -2.15 %, -1.57 %, -0.75 % with 50, 100, 200 segments.
     io_segments: int = 200
+    # The two rails are told apart only where speeds differ enough to decorrelate them:
+    # 1 - |coherence between the two inputs|^2 (the fraction of the trailing rail that is
+    # not the leading rail's delayed copy; the two-input estimate's variance grows as its
+    # inverse). Its median over the carbody band was 0.62 on a 2-journey campaign at
+    # 27.6-34.1 m/s and 0.009 on journeys all at 30 m/s, where the fit returned 3.73 Hz
+    # for a 0.906 Hz carbody bounce. Below this the two-input estimate is not used.
+    min_separability: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -90,6 +97,17 @@ class RejectedPeak:
 
 
 @dataclass(frozen=True)
+class UndeterminedMode:
+    """A rigid-body mode the campaign's data cannot determine, and why."""
+
+    label: str
+    reason: str
+
+    def to_json(self) -> dict:
+        return {"label": self.label, "frequency_hz": None, "reason": self.reason}
+
+
+@dataclass(frozen=True)
 class FRF:
     name: str
     frequency: np.ndarray  # [Hz]
@@ -110,6 +128,7 @@ class InServiceIdentification:
     prior_frequencies: dict = field(default_factory=dict)
     runs: tuple = ()  # what was read: per run samples, duration, gaps, invalid samples
     psd: object = field(default=None, repr=False)  # ChannelPSDs by speed class
+    undetermined: tuple[UndeterminedMode, ...] = ()
 
     def mode(self, label: str) -> IdentifiedMode:
         for m in self.modes:
@@ -123,6 +142,7 @@ class InServiceIdentification:
             "campaign": self.campaign,
             "kind": "in_service",
             "modes": [m.to_json() for m in self.modes],
+            "undetermined_modes": [u.to_json() for u in self.undetermined],
             "rejected_peaks": [p.to_json() for p in self.rejected_peaks],
             "spectral_lines": [ln.to_json() for ln in self.spectral_lines],
             "fdd": {
@@ -274,9 +294,10 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
 
     modes: list[IdentifiedMode] = []
     frfs: dict = {}
+    why_not: dict[str, str] = {}
     if have_io:
         r = fdd.results[IO_ANALYSIS]
-        fitted, frfs = _fit_input_output(r.frequency, r.csd, settings, prior_f)
+        fitted, frfs, why_not = _fit_input_output(r.frequency, r.csd, settings, prior_f)
         # delete-one-journey jackknife: refit without each journey's segments. Journeys differ
         # in speed mix and noise, the campaign-level variability that segment-level spreads
         # (all sharing the same journeys) miss: on seed 4 interleaved batch means said 0.08 %
@@ -284,7 +305,7 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
         spread: dict[str, list[float]] = {}
         parts = r.csd_parts.values() if len(r.csd_parts) >= 3 else ()  # a jackknife needs 3 journeys
         for part in parts:
-            part_fit, _ = _fit_input_output(r.frequency, r.csd - part, settings, prior_f)
+            part_fit, _, _ = _fit_input_output(r.frequency, r.csd - part, settings, prior_f)
             for lbl, (p, _src) in part_fit.items():
                 spread.setdefault(lbl, []).append(p.frequency_hz)
         for lbl in RIGID_LABELS:
@@ -300,48 +321,75 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             std = float(np.sqrt((n - 1) / n * np.sum((est - est.mean()) ** 2))) if n >= 3 else None
             modes.append(IdentifiedMode(lbl, p.frequency_hz, p.damping_ratio, p.damped_frequency_hz,
                                         "input_output_fit", src, fdd_hz, prior_f.get(lbl), std))
-    else:
-        est = {"bogie_pitch": fdd_estimate("bogie_pitch", settings.bogie_band),
-               "bogie_bounce": fdd_estimate("bogie_bounce", settings.bogie_band)}
-        cands = sorted([(fr, pr) for name, r in fdd.results.items() if r.analysis.role == "bogie_bounce"
-                        for fr, pr in peaks.get(name, []) if settings.carbody_band[0] <= fr <= settings.carbody_band[1]],
-                       key=lambda x: -x[1])[:2]
-        order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
-        for lbl, c in zip(order, sorted(cands)):
-            est[lbl] = c
-        for lbl in RIGID_LABELS:
-            if est.get(lbl):
-                modes.append(IdentifiedMode(lbl, est[lbl][0], None, None, "fdd_peak", "fdd", est[lbl][0],
-                                            prior_f.get(lbl)))
+    # what the input-output fit could not give (or, without axle boxes, everything) comes
+    # from the seed-faithful FDD peaks, labelled by the prior model's frequency order
+    missing = [lbl for lbl in RIGID_LABELS if lbl not in {m.label for m in modes}]
+    est = {"bogie_pitch": fdd_estimate("bogie_pitch", settings.bogie_band),
+           "bogie_bounce": fdd_estimate("bogie_bounce", settings.bogie_band)}
+    cands = sorted([(fr, pr) for name, r in fdd.results.items() if r.analysis.role == "bogie_bounce"
+                    for fr, pr in peaks.get(name, []) if settings.carbody_band[0] <= fr <= settings.carbody_band[1]],
+                   key=lambda x: -x[1])[:2]
+    order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
+    for lbl, c in zip(order, sorted(cands)):
+        est[lbl] = c
+    undetermined = []
+    for lbl in missing:
+        if est.get(lbl):
+            modes.append(IdentifiedMode(lbl, est[lbl][0], None, None, "fdd_peak", "fdd", est[lbl][0],
+                                        prior_f.get(lbl)))
+        else:
+            reason = why_not.get(lbl, "no input-output fit (no axle-box sensors or geometry)" if not have_io
+                                 else "the input-output fit found no pole for it")
+            undetermined.append(UndeterminedMode(lbl, f"{reason}; no FDD peak in the "
+                                                      f"{'carbody' if lbl.startswith('carbody') else 'bogie'} band "
+                                                      f"either"))
+    modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
 
     rejected = _rejected(peaks, fdd, modes, lines)
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
                                    frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs),
-                                   collector.psd_by_speed())
+                                   collector.psd_by_speed(), tuple(undetermined))
 
 
 def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, prior_f: dict):
     """Modes from the input-output CSD matrix (channels: rail bounce under bogie 1, the same
     rail under bogie 2, bogie-1 centre acceleration, rail pitch, bogie-1 pitch rate).
-    Returns ({label: (Pole, source)}, {name: FRF})."""
+    Returns ({label: (Pole, source)}, {name: FRF}, {label: why it was not fitted})."""
+    # Bins are weighted by the inverse standard deviation of the two-input estimate, which
+    # grows as 1 / sqrt(1 - gamma_ab^2): below ~0.6 Hz the delay 2 L_v / v turns the phase
+    # too little across speeds to tell the two rails apart (measured on seed 1: carbody
+    # bounce -1.96 % unweighted, -0.62 % weighted, noise-free data).
+    separability = np.clip(1 - np.abs(G[:, 0, 1]) ** 2 / np.real(G[:, 0, 0] * G[:, 1, 1]), 0.0, 1.0)
+    in_band = lambda band: (f >= band[0]) & (f <= band[1])  # noqa: E731
+    sep_cb = float(np.median(separability[in_band(settings.carbody_band)]))
+    sep_bb = float(np.median(separability[in_band(settings.bogie_band)]))
+    why_not: dict[str, str] = {}
     H, coh = h1(G, [2], [0, 1])
+    if sep_bb < settings.min_separability:
+        # One speed: the trailing rail is the leading rail's delayed copy and the two-input
+        # solve is ill-posed. In the bogie band the trailing rail reaches bogie 1 only through
+        # the carbody, far above its modes, so the bogie's FRF to its own rail alone holds.
+        H, coh = h1(G, [2], [0])
     Hp, cohp = h1(G, [4], [3])
     Hp_acc = Hp[:, 0, 0] * (1j * 2 * np.pi * f)  # pitch rate -> pitch acceleration
     frfs = {
         "own_rail": FRF("own_rail", f, H[:, 0, 0], coh[:, 0],
                         "bogie-1 centre acceleration / rail acceleration under bogie 1"),
         "pitch": FRF("pitch", f, Hp_acc, cohp[:, 0], "bogie-1 pitch acceleration / rail pitch acceleration under bogie 1"),
-        "trailing_rail": FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
-                             "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)"),
     }
-    # Bins are weighted by the inverse standard deviation of the two-input estimate, which
-    # grows as 1 / sqrt(1 - gamma_ab^2): below ~0.6 Hz the delay 2 L_v / v turns the phase
-    # too little across speeds to tell the two rails apart (measured on seed 1: carbody
-    # bounce -1.96 % unweighted, -0.62 % weighted, noise-free data).
-    separability = np.clip(1 - np.abs(G[:, 0, 1]) ** 2 / np.real(G[:, 0, 0] * G[:, 1, 1]), 0.0, 1.0)
+    if H.shape[2] == 2:
+        frfs["trailing_rail"] = FRF("trailing_rail", f, H[:, 0, 1], coh[:, 0],
+                                    "bogie-1 centre acceleration / rail acceleration under bogie 2 (via carbody)")
     gate = lambda c: (c >= settings.min_coherence).astype(float)  # noqa: E731
     w2 = gate(coh[:, 0]) * np.sqrt(separability)
-    cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles, weights=w2), 2)
+    if sep_cb < settings.min_separability:
+        cb = []
+        reason = (f"the rails under the two bogies cannot be told apart (median separability {sep_cb:.3f} over "
+                  f"{settings.carbody_band[0]:g}-{settings.carbody_band[1]:g} Hz, "
+                  f"{settings.min_separability:g} needed): the segments' speeds are too alike")
+        why_not = {"carbody_bounce": reason, "carbody_pitch": reason}
+    else:
+        cb = _strongest(fit_poles(f, H[:, 0, 1], settings.carbody_band, 2 + settings.extra_poles, weights=w2), 2)
     signs = {p: _static_sign(p, f, H[:, 0, 1]) for p in cb}
     bounce = [p for p in cb if signs[p] > 0]
     pitch = [p for p in cb if signs[p] < 0]
@@ -351,13 +399,14 @@ def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, 
         order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
         cb_labels = dict(zip(cb, order))
     fitted = {lbl: (p, "trailing_rail") for p, lbl in cb_labels.items()}
-    bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles, weights=w2), 1)
+    w_bb = w2 if sep_bb >= settings.min_separability else gate(coh[:, 0])
+    bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles, weights=w_bb), 1)
     bp = _strongest(fit_poles(f, Hp_acc, settings.bogie_band, 1 + settings.extra_poles, weights=gate(cohp[:, 0])), 1)
     if bb:
         fitted["bogie_bounce"] = (bb[0], "own_rail")
     if bp:
         fitted["bogie_pitch"] = (bp[0], "pitch")
-    return fitted, frfs
+    return fitted, frfs, why_not
 
 
 def _run_report(run) -> dict:
