@@ -1,7 +1,7 @@
 """Mutated campaigns for tests/test_campaign_fuzz.py.
 
 A small valid in-service campaign (:func:`write_base`: six sensors as the truth simulator
-lays them out, 4 s at 100 Hz, a D1 track recording) is copied and spoiled in one way per
+lays them out, 7 s at 100 Hz, a D1 track recording) is copied and spoiled in one way per
 mutant. The rule: mutant ``i`` belongs to class ``CLASSES[i % len(CLASSES)]`` and draws
 every choice it makes (which file, row, column, value) from
 ``numpy.random.default_rng([SEED, i])``, so a failing mutant is rebuilt from its number.
@@ -24,8 +24,8 @@ from calibration.models.vehicles import INTERCITY_TRAILER
 
 SEED = 29
 RATE = 100.0  # [Hz]
-N_ROWS = 400  # 4 s
-SPEED = 30.0  # [m/s]
+N_ROWS = 700  # 7 s
+SPEED = 100.0  # [m/s]: 700 m, enough for validate to compare 200 m over the track
 SENSORS = (
     Sensor("axle1_left_acc_z", "acceleration", "g", "axle1", "z", (9.18, 0.75, 0.5)),
     Sensor("axle1_right_acc_z", "acceleration", "g", "axle1", "z", (9.18, -0.75, 0.5)),
@@ -60,7 +60,7 @@ def write_base(root: Path, fmt: str = "csv") -> Path:
         w.write_run("run_a", base_columns())
         w.commit()
     (root / "track").mkdir()
-    x = np.arange(0.0, 400.0, 0.25)
+    x = np.arange(0.0, 1000.0, 0.25)
     level = 1e-3 * np.sin(2 * np.pi * x / 12.0)
     rows = "".join(f"{a:.2f},{b:.6e}\n" for a, b in zip(x, level))
     (root / TRACK).write_text('# band = "D1"\ndistance,level\n' + rows)

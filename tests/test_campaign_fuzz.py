@@ -1,14 +1,18 @@
 """Fuzzing the campaign reader through the command line (issue 29).
 
 Mutants of a small valid campaign (tests/fuzz_mutants.py: the classes and the seeded rule
-that builds them) go through ``railcal identify``; every third also through
-``calibrate``, ``validate`` and ``diagnose``. Each must be
+that builds them) go through ``railcal identify``; every third also through ``calibrate``
+and ``diagnose``, every ninth through ``validate`` (which accepts the base, in 3 s). Each
+must be
 
 * accepted: exit 0 with a complete JSON, or read and then refused by the analysis as the
-  unmutated campaign is (the same message, numbers aside) (the base is 4 s long, too short for any analysis: a full
-  identification of even 5 km takes 40 s here, too long for 100 mutants), or
+  unmutated campaign is (the same message, numbers aside). The base is 700 m long, too
+  short for identify's 2 km segments and diagnose's 80 s records: a full identification of
+  even 5 km takes 40 s here, too long for 100 mutants. A mutant may also leave too little
+  usable data for an analysis (a shorter run, missing samples): refused as such, naming
+  the campaign or file. Or
 * refused: exit 2 with a short message naming a file of the campaign and the line, column
-  or key (or, for a fault of the whole file, what is wrong with it),
+  or key (or, for a fault of the whole file, what is wrong with it);
 
 never exit 1, never past the time limit, never changing the input tree, never leaving an
 output behind on refusal. Run with ``-s`` to see the count of mutants per class and outcome.
@@ -39,6 +43,8 @@ TIME_LIMIT = 60.0  # [s] per command
 WHOLE_FILE = ("not a regular file", "larger than", "outside the campaign folder", "cannot read", "no header row",
               "no run files", "missing runs/ folder", "missing campaign.toml", "UTF-16")
 WHERE = re.compile(r"line \d+|column '|key '")
+#: Refusals by an analysis of data that is well formed but too little for it.
+TOO_LITTLE = ("no usable 2000 m segment", "no run covers at least", "no gap-free stretch")
 
 
 class MutantTimeout(BaseException):
@@ -120,6 +126,8 @@ def judge(code, err: str, base_err: str, root: Path) -> str:
         return "read, refused by the analysis as the base"
     if str(root) not in err:
         return "FAIL message names no file of the campaign"
+    if any(w in err for w in TOO_LITTLE):
+        return "read, too little usable data for the analysis"
     if not WHERE.search(err) and not any(w in err for w in WHOLE_FILE):
         return "FAIL message names no line, column or key"
     return "refused, named"
@@ -151,7 +159,8 @@ def test_mutated_campaigns_are_accepted_or_refused_with_exit_2(bases, tmp_path, 
         what = mutate(root, rng, outside) if cls == "path_escapes" else mutate(root, rng)
         before = (tree_state(root), tree_state(outside))
         cmds = commands(root, top / "out", calibration)
-        for name in (cmds if i % 3 == 0 else ["identify"]):
+        chosen = ["identify"] + (["calibrate", "diagnose"] if i % 3 == 0 else []) + (["validate"] if i % 9 == 0 else [])
+        for name in chosen:
             out = top / "out"
             out.mkdir()
             code, err, seconds = run_command(cmds[name], capsys)
