@@ -614,3 +614,22 @@ def test_track_band_is_read_after_a_byte_order_mark_and_any_line_ending(tiny_cam
     path.write_bytes(b"\xef\xbb\xbf" + ending.join([b'# band = "D1"', b"distance,level", b"0,0.001", b"1,0.002", b""]))
     rec = read_track_file(path)
     assert rec.band == "D1" and rec.distance.tolist() == [0.0, 1.0]
+
+
+def test_small_input_files_are_checked_before_they_are_read(tmp_path):
+    """For the calibration JSON and targets TOML readers (read_input_file): a device, a FIFO
+    or an oversized file is refused at once instead of read for ever."""
+    from calibration.data.campaign import read_input_file
+
+    os.mkfifo(tmp_path / "cal.json")
+    big = tmp_path / "big.json"
+    with open(big, "wb") as f:
+        f.truncate(20 * 2 ** 30)
+    good = tmp_path / "good.json"
+    good.write_bytes(b'\xef\xbb\xbf{"parameters": {}}')
+    with deadline(30):
+        for path, pattern in (("/dev/zero", "character device"), (tmp_path / "cal.json", "FIFO"),
+                              (big, "larger than"), (tmp_path, "folder")):
+            with pytest.raises(CampaignError, match=pattern):
+                read_input_file(path)
+    assert json.loads(read_input_file(good)) == {"parameters": {}}

@@ -410,6 +410,23 @@ def _read_bytes(path: Path, limit: int) -> bytes:
     return data
 
 
+#: A settings or result file a command reads besides a campaign (calibration JSON, targets
+#: and priors TOML, a truth file) is refused above this size: such files are kB to a few MB.
+MAX_INPUT_BYTES = 64 << 20
+
+
+def read_input_file(path, *, limit: int = MAX_INPUT_BYTES) -> str:
+    """The UTF-8 text of a small input file (a calibration JSON, a targets TOML), checked
+    first to be a regular file of at most ``limit`` bytes: reading ``/dev/zero`` or a FIFO
+    would never end. Raises :class:`CampaignError` (an InputError: exit 2) naming the path."""
+    path = Path(path)
+    data = _read_bytes(path, limit)
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise CampaignError("not UTF-8 text", path=path, line=data[:e.start].count(b"\n") + 1) from None
+
+
 _BOM = b"\xef\xbb\xbf"
 # a cell the fallback parser accepts: a decimal number, inf or nan, or nothing (missing)
 _CELL = re.compile(rb"\s*(?:[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|inf|infinity)|nan)?\s*",
