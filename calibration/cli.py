@@ -507,6 +507,8 @@ def cmd_demo(args) -> int:
     if os.path.lexists(out) and not out.is_dir():
         raise InputError("exists and is not a folder; --out takes the folder to write the demo into", path=out,
                          key="--out")
+    # the demo replaces its own campaign there: refuse before any work if that is not one railcal wrote
+    check_campaign_output(out / "campaign", overwrite=True)
     report = run_demo(Path(args.out), progress=_progress(args))
     print(f"demo finished: report {report}; wrote its results, figures and FMUs into {args.out}")
     return EXIT_OK

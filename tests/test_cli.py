@@ -202,3 +202,12 @@ def test_a_calibration_carries_its_format_and_readers_refuse_unknown_formats(tmp
     code, _, err = run(["export-fmu", "--calibration", future, "--out", tmp_path / "x.fmu"], capsys)
     assert code == 2 and "future.json" in err and "key 'format'" in err and "railcal-calibration/7" in err
     assert not (tmp_path / "x.fmu").exists()
+
+
+def test_demo_never_replaces_a_campaign_folder_railcal_did_not_write(tmp_path, capsys):
+    mine = tmp_path / "out" / "campaign"
+    mine.mkdir(parents=True)
+    (mine / "notes.txt").write_text("mine")
+    code, _, err = run(["demo", "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 2 and str(mine) in err and "not a campaign railcal wrote" in err
+    assert (mine / "notes.txt").read_text() == "mine"

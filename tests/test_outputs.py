@@ -213,3 +213,17 @@ def test_results_carry_their_format_and_readers_refuse_unknown_ones(tmp_path):
         write_result(tmp_path / "x.json", {"format": "railcal-modes/1"}, "calibration")
     assert set(RESULT_FORMATS) >= {"identification", "calibration", "validation", "diagnosis", "crosscheck",
                                    "modes", "truth"}
+
+
+def test_a_campaign_written_before_the_marker_is_known_by_its_truth_file(tmp_path):
+    root = _write(tmp_path / "old")
+    (root / SYNTH_MARKER).unlink()
+    truth = tmp_path / "old.truth.json"
+    truth.write_text(json.dumps({"format": "railcal-truth/1", "campaign": "other", "parameters": {},
+                                 "frequencies_hz": {}}))
+    with pytest.raises(InputError, match="not a campaign railcal wrote"):
+        check_campaign_output(root, overwrite=True)  # a truth file naming another campaign proves nothing
+    truth.write_text(json.dumps({"format": "railcal-truth/1", "campaign": "old", "parameters": {},
+                                 "frequencies_hz": {}}))
+    _write(root, overwrite=True)
+    assert (root / SYNTH_MARKER).is_file()

@@ -107,13 +107,25 @@ def _protected_folders() -> list[str]:
     return sorted(out)
 
 
-def _is_railcal_truth(path: Path) -> bool:
+def _railcal_truth(path: Path) -> dict | None:
+    """The truth file railcal wrote at ``path``, or None."""
     try:
         obj = json.loads(path.read_text())
     except (OSError, ValueError, UnicodeDecodeError):
-        return False
-    return isinstance(obj, dict) and (obj.get("format") == RESULT_FORMATS["truth"]
-                                      or ("format" not in obj and {"parameters", "frequencies_hz"} <= set(obj)))
+        return None
+    ok = isinstance(obj, dict) and (obj.get("format") == RESULT_FORMATS["truth"]
+                                    or ("format" not in obj and {"parameters", "frequencies_hz"} <= set(obj)))
+    return obj if ok else None
+
+
+def _written_by_railcal(root: Path) -> bool:
+    """The marker, or (a campaign written before the marker existed) a railcal truth file
+    beside the folder that names it."""
+    if (root / SYNTH_MARKER).is_file():
+        return True
+    truth = Path(f"{root}.truth.json")
+    obj = _railcal_truth(truth) if truth.is_file() and not truth.is_symlink() else None
+    return obj is not None and obj.get("campaign") == root.name and (root / "campaign.toml").is_file()
 
 
 def check_campaign_output(root, *, overwrite: bool = False) -> Path:
@@ -139,8 +151,8 @@ def check_campaign_output(root, *, overwrite: bool = False) -> Path:
         if not overwrite:
             raise CampaignError("already exists; choose another output or remove it (--force replaces a "
                                 "campaign railcal wrote)", path=root, key=key)
-        if not (root / SYNTH_MARKER).is_file() and any(root.iterdir()):
-            raise CampaignError(f"is not a campaign railcal wrote (no {SYNTH_MARKER} marker); --force replaces "
+        if not _written_by_railcal(root) and any(root.iterdir()):
+            raise CampaignError(f"is not a campaign railcal wrote (no {SYNTH_MARKER} marker); railcal replaces "
                                 "only those, so nothing was removed", path=root, key=key)
     _check_parent(root, key)
     truth = Path(f"{root}.truth.json")
@@ -150,8 +162,8 @@ def check_campaign_output(root, *, overwrite: bool = False) -> Path:
         if not overwrite:
             raise CampaignError("already exists; choose another output or remove it (--force replaces the "
                                 "truth of a campaign railcal wrote)", path=truth, key=key)
-        if not _is_railcal_truth(truth):
-            raise CampaignError("is not a truth file railcal wrote; --force replaces only those, so nothing "
+        if _railcal_truth(truth) is None:
+            raise CampaignError("is not a truth file railcal wrote; railcal replaces only those, so nothing "
                                 "was removed", path=truth, key=key)
     return root
 
