@@ -23,6 +23,7 @@ from .models.box.fit import BoxFit, ModeTarget, polish_box, refine_box, sensor_o
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
+from .progress import counter
 from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
 
 DEFAULT_RANGE = GROUPED_RANGE  # stiffness factors, when the campaign gives no priors
@@ -98,18 +99,27 @@ def calibrated_box_model(calibration: dict):
 
 
 def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.Generator, settings: PSOSettings, *,
-              log_factors: bool = False):
+              log_factors: bool = False, progress=None, desc: str = "particle swarm"):
     """The seed's swarm on ``fit`` (RTRI eq. 3), its basis built at the search's centre and
     adapted as the swarm narrows; with ``log_factors`` the particles move in the factors'
-    logarithms (the same centre, a spread of 0.3). Returns (the PSO result, the best factors)."""
-    fit.rebuild(np.array([q.mean for q in search]))
-    if not log_factors:
-        res = particle_swarm(fit, search, rng, settings=settings, adapt=fit.adapt)
-        return res, res.best
-    space = tuple(SearchParameter(q.name, np.log(q.mean), 0.3, np.log(q.low), np.log(q.high), 0.01) for q in search)
-    res = particle_swarm(lambda Q: fit(np.exp(np.atleast_2d(Q))), space, rng, settings=settings,
-                         adapt=lambda it, best, force=False: fit.adapt(it, np.exp(best), force=force))
-    return res, np.exp(res.best)
+    logarithms (the same centre, a spread of 0.3). ``progress``: a bar of the iterations
+    (:func:`calibration.progress.counter`; the swarm may stop before the last at its
+    target). Returns (the PSO result, the best factors)."""
+    with counter(progress, settings.iterations, f"{desc} ({settings.particles} particles)", unit="it") as bar:
+        def tick(it, best):
+            bar.set_postfix_str(f"best {best:.3g} %, {fit.rebuilds} bases", refresh=False)
+            bar.update()
+
+        fit.rebuild(np.array([q.mean for q in search]))
+        if not log_factors:
+            res = particle_swarm(fit, search, rng, settings=settings, adapt=fit.adapt, on_iteration=tick)
+            return res, res.best
+        space = tuple(SearchParameter(q.name, np.log(q.mean), 0.3, np.log(q.low), np.log(q.high), 0.01)
+                      for q in search)
+        res = particle_swarm(lambda Q: fit(np.exp(np.atleast_2d(Q))), space, rng, settings=settings,
+                             adapt=lambda it, best, force=False: fit.adapt(it, np.exp(best), force=force),
+                             on_iteration=tick)
+        return res, np.exp(res.best)
 
 
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
@@ -166,10 +176,9 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     runs = []
     for k in range(swarms):
         tag = f"swarm {k + 1}: " if swarms > 1 else ""
-        if progress and swarms > 1:
-            progress(f"swarm {k + 1} of {swarms}: {each.particles} particles")
         rebuilds, t0 = fit.rebuilds, time.perf_counter()
-        res, best = swarm_box(fit, search[:len(model.names)], rng, each, log_factors=log_factors)
+        res, best = swarm_box(fit, search[:len(model.names)], rng, each, log_factors=log_factors, progress=progress,
+                              desc=f"swarm {k + 1} of {swarms}" if swarms > 1 else "particle swarm")
         run = {"res": res, "best": best, "check": fit.full_check(best), "wall": time.perf_counter() - t0,
                "rebuilds": fit.rebuilds - rebuilds, "p": best, "refinement": None, "fit": fit}
         runs.append(run)

@@ -77,7 +77,9 @@ from ..data.errors import CampaignError, InputError
 from ..identification import ema
 from ..identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
 from ..models.box import BoxModel
+from ..models.box.factor import factorise
 from ..models.box.fit import mac_matrix, sensor_operator
+from ..models.box.reduced import CLUSTER_EXTRA, NEGLIGIBLE, canonical_vectors
 from ..optimisers.pso import PSOSettings
 from .threads import one_blas_thread
 
@@ -369,7 +371,7 @@ def modes_below(model: BoxModel, p, hz: float, start: int = 60) -> int:
     """How many modes of the box model at factors ``p`` lie below ``hz`` [Hz] (the
     lowest modes solved in growing batches until one passes ``hz``)."""
     K = model.stiffness(np.asarray(p, float))
-    lu = scipy.sparse.linalg.splu(K.tocsc())
+    lu = factorise(K)
     k = min(start, model.n_dof - 2)
     while True:
         w2, _ = _lowest_modes(K, model.M, k, lu)
@@ -383,12 +385,14 @@ def _lowest_modes(K, M, n_modes: int, lu=None):
     """Lowest ``n_modes`` eigenpairs of K x = lambda M x (K positive definite: the vehicle
     stands on its suspension), shift-invert about 0 with the factorisation ``lu`` of K
     (made here when not given), from a fixed start vector."""
-    lu = scipy.sparse.linalg.splu(K.tocsc()) if lu is None else lu
+    lu = factorise(K) if lu is None else lu
     op = scipy.sparse.linalg.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
     v0 = np.random.default_rng(0).standard_normal(K.shape[0])
-    w2, X = scipy.sparse.linalg.eigsh(K.tocsc(), k=n_modes, M=M.tocsc(), sigma=0.0, OPinv=op, which="LM", v0=v0)
+    k = min(n_modes + CLUSTER_EXTRA, K.shape[0] - 2)
+    w2, X = scipy.sparse.linalg.eigsh(K.tocsc(), k=k, M=M.tocsc(), sigma=0.0, OPinv=op, which="LM", v0=v0)
     order = np.argsort(w2)
-    return w2[order], X[:, order]
+    w2, X = w2[order], canonical_vectors(w2[order], X[:, order], M)  # equal pairs: shapes round-off does not turn
+    return w2[:n_modes], X[:, :n_modes]
 
 
 @dataclass(frozen=True, eq=False)
@@ -419,7 +423,7 @@ class Reduced:
         model = ops.model
         K = at.matrix(ops)
         M = model.M
-        lu = scipy.sparse.linalg.splu(K.tocsc())
+        lu = factorise(K)
         w2, X = _lowest_modes(K, M, n_modes, lu)
         while below_hz is not None and w2[-1] < (2 * np.pi * below_hz) ** 2 and X.shape[1] < model.n_dof - 22:
             w2, X = _lowest_modes(K, M, X.shape[1] + 20, lu)  # a softened panel brings its modes down
@@ -436,11 +440,17 @@ class Reduced:
         size = V.shape[1] + extra
         if extra > 0 and blocks:
             Sb = np.hstack(blocks)
+            before = np.sqrt(np.einsum("ij,ij->j", Sb, M @ Sb))
             Sb = Sb - V @ (V.T @ (M @ Sb))
-            Sb = Sb / np.sqrt(np.maximum(np.einsum("ij,ij->j", Sb, M @ Sb), 1e-300))[None, :]
+            after = np.sqrt(np.einsum("ij,ij->j", Sb, M @ Sb))
+            # directions that are round-off only (a factor a mode does not strain) are left out,
+            # not normalised into noise that differs with the BLAS thread count
+            real = (before > NEGLIGIBLE * before.max()) & (after > NEGLIGIBLE * before)
+            Sb = Sb[:, real] / after[real][None, :]
             G = Sb.T @ (M @ Sb)
             lam, U = scipy.linalg.eigh((G + G.T) / 2)
-            keep = np.argsort(lam)[::-1][:size - V.shape[1]]
+            lam, U = lam[::-1], canonical_vectors(lam[::-1], U[:, ::-1])
+            keep = np.arange(min(size - V.shape[1], lam.size))
             keep = keep[lam[keep] > 1e-10 * lam.max()]
             V = _m_orthonormal(np.hstack([V, Sb @ (U[:, keep] / np.sqrt(lam[keep]))]), M)
 

@@ -13,6 +13,17 @@ it returns True the objective has changed, and every particle's remembered best 
 re-evaluated with it so that old and new values are never compared. Reaching ``target``
 is confirmed the same way, with ``adapt(iteration, global_best, force=True)``: the search
 stops only if the best still meets the target once the objective is exact there.
+
+Objective values are compared at ``digits`` significant digits. A swarm's path is a
+chain of comparisons (is this particle better than its best? which is the swarm's best?),
+so a difference in the last bits of one value, such as the round-off of a BLAS call on
+two threads instead of one, changes every position after it and the answer with them;
+values that agree to ``digits`` digits are ties, kept in the same order on any machine
+(the relative round-off of the box model's eigen-solves is about 1e-13, its errors are
+reported to 3 digits; 0: exact comparisons).
+
+``on_iteration(iteration, best_value)``, if given, is called after every iteration (a
+progress bar's hook); it does not change the search.
 """
 from __future__ import annotations
 
@@ -32,10 +43,24 @@ class PSOSettings:
     cognitive: float = 1.49618
     social: float = 1.49618
     max_velocity: float = 0.2  # fraction of each range per iteration
+    digits: int = 9  # significant digits objective values are compared at (0: all)
 
     def __post_init__(self):
         if self.particles < 2 or self.iterations < 1:
             raise ValueError("need at least 2 particles and 1 iteration")
+        if not 0 <= self.digits <= 15:
+            raise ValueError(f"digits must lie in 0..15, got {self.digits}")
+
+
+def resolved(values, digits: int) -> np.ndarray:
+    """``values`` rounded to ``digits`` significant digits (all of them for 0); not finite: inf."""
+    v = np.asarray(values, float)
+    v = np.where(np.isfinite(v), v, np.inf)
+    if digits <= 0:
+        return v
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = 10.0 ** (np.floor(np.log10(np.abs(v))) - digits + 1)
+        return np.where(np.isfinite(q) & (q > 0), np.round(v / q) * q, v)
 
 
 @dataclass(frozen=True)
@@ -50,7 +75,7 @@ class PSOResult:
 
 
 def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.random.Generator, *,
-                   settings: PSOSettings = PSOSettings(), adapt=None) -> PSOResult:
+                   settings: PSOSettings = PSOSettings(), adapt=None, on_iteration=None) -> PSOResult:
     names = tuple(p.name for p in parameters)
     low, high = bounds(parameters)
     if not (np.all(np.isfinite(high)) and np.all(np.isfinite(low))) or any(p.low is None for p in parameters):
@@ -61,8 +86,7 @@ def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.r
     n, d = settings.particles, len(parameters)
     x = low + rng.uniform(size=(n, d)) * span
     v = (rng.uniform(size=(n, d)) - 0.5) * span * settings.max_velocity
-    fx = np.asarray(objective(x), float)
-    fx = np.where(np.isfinite(fx), fx, np.inf)
+    fx = resolved(objective(x), settings.digits)
     p_best, p_val = x.copy(), fx.copy()
     g = int(np.argmin(p_val))
     history = [float(p_val[g])]
@@ -74,18 +98,18 @@ def particle_swarm(objective, parameters: tuple[SearchParameter, ...], rng: np.r
              + settings.social * r2 * (p_best[g] - x))
         v = np.clip(v, -settings.max_velocity * span, settings.max_velocity * span)
         x = np.clip(x + v, low, high)
-        fx = np.asarray(objective(x), float)
-        fx = np.where(np.isfinite(fx), fx, np.inf)
+        fx = resolved(objective(x), settings.digits)
         evaluations += n
         better = fx < p_val
         p_best[better], p_val[better] = x[better], fx[better]
         g = int(np.argmin(p_val))
         if adapt is not None and (adapt(it, p_best[g].copy())
                                   or (p_val[g] <= settings.target and adapt(it, p_best[g].copy(), force=True))):
-            p_val = np.asarray(objective(p_best), float)
-            p_val = np.where(np.isfinite(p_val), p_val, np.inf)
+            p_val = resolved(objective(p_best), settings.digits)
             evaluations += n
             g = int(np.argmin(p_val))
         history.append(float(p_val[g]))
+        if on_iteration is not None:
+            on_iteration(it, history[-1])
     return PSOResult(names, p_best[g].copy(), float(p_val[g]), it, evaluations,
                      bool(p_val[g] <= settings.target), history)

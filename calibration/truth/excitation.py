@@ -84,12 +84,12 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.signal
-import scipy.sparse.linalg
 
 from ..data.campaign import CampaignMeta, Excitation, Prior, Sensor
 from ..data.outputs import CampaignWriter, write_json_atomic
 from ..models.box import SEARCH_PARAMETERS, BoxModel, assemble, shinkansen_vehicle
 from ..models.box.fit import mac_matrix, sensor_operator
+from ..models.box.factor import factorise
 from ..models.box.reduced import full_modes
 from ..models.box.panel import Panel
 from ..models.box.shinkansen import ORDERS, Geometry, floor_panel
@@ -330,13 +330,13 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
     S, e = vertical_operators(model, sensors, exciter)
     if residual_points:
         loads = np.column_stack([e, *sensor_operator(model, residual_points)])
-        Psi = scipy.sparse.linalg.splu(model.stiffness(p).tocsc()).solve(loads) - X @ (X.T @ loads / w[:, None] ** 2)
+        Psi = factorise(model.stiffness(p)).solve(loads) - X @ (X.T @ loads / w[:, None] ** 2)
         k_psi = Psi.T @ loads  # = Psi^T K Psi, as X^T M Psi = 0
         lam, Z = scipy.linalg.eigh((k_psi + k_psi.T) / 2, Psi.T @ (model.M @ Psi))
         psi_hat, f_res = Psi @ Z, np.sqrt(lam) / (2 * np.pi)
     else:
         # residual pseudo-mode: static response of the omitted modes to the exciter force
-        psi = scipy.sparse.linalg.splu(model.stiffness(p).tocsc()).solve(e) - X @ (X.T @ e / w**2)
+        psi = factorise(model.stiffness(p)).solve(e) - X @ (X.T @ e / w**2)
         m_psi = psi @ (model.M @ psi)
         psi_hat = psi / np.sqrt(m_psi)
         f_res = np.sqrt((psi @ e) / m_psi) / (2 * np.pi)

@@ -33,6 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .assembly import BoxModel
+from .factor import factorise
 from .reduced import ReducedFamily, full_modes
 
 
@@ -136,15 +137,25 @@ def band_pairing(frequency_hz, phi, shapes, f_target, band, mac, eligible=None):
     inside &= (band > 0)[None, :, None]
     if eligible is not None:
         inside &= np.asarray(eligible, bool)[:, None, :]
-    for n, t in zip(*np.nonzero(inside.sum(axis=2) >= 2)):  # few: only near a close pair
-        ks = np.flatnonzero(inside[n, t])
-        U = phi[n][:, ks] / np.linalg.norm(phi[n][:, ks], axis=0)  # unit columns: c compares contributions
-        v = shapes[:, t]
-        c, *_ = np.linalg.lstsq(U, v, rcond=1e-10)
-        proj = U @ c
-        span_mac = float(np.abs(np.vdot(proj, v)) ** 2 / (np.real(np.vdot(proj, proj) * np.vdot(v, v)) + 1e-300))
-        if span_mac > best[n, t]:
-            idx[n, t], best[n, t] = ks[int(np.argmax(np.abs(c)))], span_mac
+    rows, cols = np.nonzero(inside.sum(axis=2) >= 2)
+    counts = inside[rows, cols].sum(axis=1)
+    # batched over the pairs with the same number of modes in their band: in a swarm, a band
+    # holding a close pair is common (1-2 per particle), and one least-squares call each
+    # cost more than the particle's eigen-solve
+    for k in np.unique(counts):
+        n, t = rows[counts == k], cols[counts == k]
+        ks = np.nonzero(inside[n, t])[1].reshape(-1, k)  # (G, k) the band's members, ascending
+        U = np.take_along_axis(phi[n], ks[:, None, :], axis=2)
+        U = U / np.linalg.norm(U, axis=1, keepdims=True)  # unit columns: c compares contributions
+        v = shapes[:, t].T  # (G, s)
+        c = np.einsum("gks,gs->gk", np.linalg.pinv(U, rtol=1e-10), v)  # least squares, rank-revealing
+        proj = np.einsum("gsk,gk->gs", U, c)
+        span_mac = (np.abs(np.einsum("gs,gs->g", np.conj(proj), v)) ** 2
+                    / (np.real(np.einsum("gs,gs->g", np.conj(proj), proj) * np.einsum("gs,gs->g", np.conj(v), v))
+                       + 1e-300))
+        win = span_mac > best[n, t]
+        lead = ks[np.arange(len(n)), np.argmax(np.abs(c), axis=1)]
+        idx[n[win], t[win]], best[n[win], t[win]] = lead[win], span_mac[win]
     return idx, best
 
 
@@ -298,15 +309,13 @@ class BoxFit:
         """:meth:`frequency_gradient` at p and the derivatives of the partners' MACs,
         d MAC_k / d log p_i (T, d), with each target's partner held: the eigenvector
         derivative of Nelson's method in bordered form, [K - w_k^2 M, M x_k; x_k^T M, 0]
-        [dx; mu] = [-(K_i - (x_k^T K_i x_k) M) x_k; 0] (one sparse factorisation per partner,
+        [dx; mu] = [-(K_i - (x_k^T K_i x_k) M) x_k; 0] (one factorisation per partner,
         the d right-hand sides together; exact for a simple eigenvalue; Nelson, AIAA J. 14
         (1976) 1201-1205), then MAC = |a^H S x|^2 / (a^H a |S x|^2) differentiated. A
         target with a half-power band may pair with the span of several modes
         (:func:`band_pairing`), which this does not differentiate: then central
         differences of +-1e-3 in each log factor (2 d more full eigen-solves). Returns
         (check, d (f / f_target) / d log p, d MAC / d log p or None without ``macs``)."""
-        import scipy.sparse.linalg
-
         p = np.asarray(p, float)
         check, f, X = self._full_check(p)
         G = self._frequency_jacobian(p, f, X, check["index"])
@@ -325,7 +334,7 @@ class BoxFit:
             A = sp.bmat([[K - (2 * np.pi * f[k]) ** 2 * M, Mx[:, None]], [Mx[None, :], None]], format="csc")
             Kx = np.column_stack([self.model.K_units[n] @ x for n in self.names])  # (n_dof, d)
             rhs = -(Kx - np.outer(Mx, x @ Kx))
-            dX = scipy.sparse.linalg.splu(A).solve(np.vstack([rhs, np.zeros((1, p.size))]))[:-1] * p
+            dX = factorise(A).solve(np.vstack([rhs, np.zeros((1, p.size))]))[:-1] * p
             a, y, dy = self.shapes[:, t], self.sensors @ x, self.sensors @ dX
             c, aa, yy = np.vdot(a, y), np.real(np.vdot(a, a)), float(y @ y)
             J[t] = (2 * np.real(np.conj(c) * (np.conj(a) @ dy)) * yy - abs(c) ** 2 * 2 * (y @ dy)) / (aa * yy**2)
