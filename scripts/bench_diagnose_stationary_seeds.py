@@ -1,0 +1,111 @@
+"""Benchmark: the stationary diagnosis on every seed of tests/test_diagnosis_stationary.py's
+campaign table, including the series once set aside after a failure (a seed is never
+retired for failing: it stays a case, and the rate counts it).
+
+Series 5201-5206, 5301-5306 and 5311-5316, each: underfloor equipment at the low and high
+end of its range (mass ratio 0.01, 0.05), local panel softening at both ends (divisor 3,
+10), effect-free, and a sensor on a resilient bracket (21 Hz; outside the catalogue, so
+the right answer is `unexplained`). The coarse box model and the lighter settings of the
+test file (``FAST``), one BLAS thread per worker. Prints one line per campaign and the
+right-answer rate with its 95 % interval (Wilson score), overall and per effect.
+
+    python scripts/bench_diagnose_stationary_seeds.py [--series 5201 5301 5311] [--jobs 2] [--only NAME]
+"""
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import multiprocessing  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+#: position in a series -> (case, effect, magnitude), as in the test file's table
+LAYOUT = ((1, "equipment_low", "underfloor_equipment", 0.01), (2, "equipment_high", "underfloor_equipment", 0.05),
+          (3, "softening_low", "local_panel_softening", 3.0), (4, "softening_high", "local_panel_softening", 10.0),
+          (5, "effect_free", None, None), (6, "outside_catalogue", "sensor_bracket", 21.0))
+COARSE_BOX_ORDERS = -4  # tests/conftest.py
+_MODEL = {}
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson score interval of a rate k/n."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    c = (p + z * z / (2 * n)) / (1 + z * z / n)
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, c - h), min(1.0, c + h)
+
+
+def _init() -> None:
+    from calibration.truth.excitation import ExcitationSettings, build_model
+
+    _MODEL["settings"] = ExcitationSettings(runs=2, duration=300.0, order_change=COARSE_BOX_ORDERS)
+    _MODEL["model"] = build_model(_MODEL["settings"])
+
+
+def _case(case: dict) -> dict:
+    from calibration.data.campaign import open_campaign
+    from calibration.diagnosis.stationary import StationarySettings, diagnose_stationary
+    from calibration.truth.effects import UNCATALOGUED, EffectChoice, effect_spec
+    from calibration.truth.excitation import synth_excitation
+
+    fast = StationarySettings(basis_extra=32, derivative_modes=12, refine_iterations=30, starts=2)  # the test's FAST
+    effect = None if case["effect"] is None else EffectChoice(effect_spec(case["effect"]), case["magnitude"])
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp) / f"shaker_{case['seed']}"
+        truth = synth_excitation(root, seed=case["seed"], settings=_MODEL["settings"], effect=effect,
+                                 model=_MODEL["model"])
+        t0 = time.perf_counter()
+        result = diagnose_stationary(open_campaign(root), model=_MODEL["model"], settings=fast)
+        wall = time.perf_counter() - t0
+    hidden = case["effect"] or "none"
+    expected = "unexplained" if hidden in UNCATALOGUED else hidden
+    eff = truth["effect"] or {}
+    return {**case, "cause": result["cause"], "expected": expected, "right": result["cause"] == expected,
+            "gain": result["gain"]["reduction"] if result["gain"] else None, "panel": eff.get("panel"),
+            "hypotheses": {h["name"]: round(h["gain"], 3) for h in result["hypotheses"]},
+            "baseline_heldout_error": result["evidence"]["heldout_error_mean"], "wall_s": wall}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--series", type=int, nargs="+", default=[5201, 5301, 5311], help="first seed of each series")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--only", help="run only this case of each series (e.g. softening_low)")
+    args = ap.parse_args()
+    cases = [{"seed": s0 + k - 1, "case": name, "effect": eff, "magnitude": mag}
+             for s0 in args.series for k, name, eff, mag in LAYOUT if args.only in (None, name)]
+    print(f"{len(cases)} campaigns: seeds {', '.join(str(c['seed']) for c in cases)}", flush=True)
+    rows = []
+    with multiprocessing.get_context("spawn").Pool(args.jobs, initializer=_init) as pool:
+        for r in pool.imap_unordered(_case, cases):
+            rows.append(r)
+            gain = "" if r["gain"] is None else f", held-out error -{r['gain']:.0%}"
+            print(f"seed {r['seed']} {r['case']}{'' if r['panel'] is None else ' (' + r['panel'] + ')'}: "
+                  f"{r['cause']} ({'right' if r['right'] else 'WRONG, expected ' + r['expected']}{gain}; "
+                  f"hypotheses {r['hypotheses']}; baseline error {r['baseline_heldout_error']:.2f}; "
+                  f"{r['wall_s']:.0f} s)", flush=True)
+    rows.sort(key=lambda r: r["seed"])
+    k, n = sum(r["right"] for r in rows), len(rows)
+    lo, hi = wilson(k, n)
+    print(f"\nright answer {k}/{n} = {k / n:.0%} (95 % interval {lo:.0%}-{hi:.0%})")
+    for _, name, _, _ in LAYOUT:
+        sel = [r for r in rows if r["case"] == name]
+        if sel:
+            kk = sum(r["right"] for r in sel)
+            a, b = wilson(kk, len(sel))
+            print(f"  {name}: {kk}/{len(sel)} (95 % interval {a:.0%}-{b:.0%}); wrong: "
+                  f"{', '.join(str(r['seed']) + ' -> ' + r['cause'] for r in sel if not r['right']) or 'none'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
