@@ -227,3 +227,13 @@ def test_a_campaign_written_before_the_marker_is_known_by_its_truth_file(tmp_pat
                                  "frequencies_hz": {}}))
     _write(root, overwrite=True)
     assert (root / SYNTH_MARKER).is_file()
+
+
+def test_importing_the_plot_modules_leaves_the_users_backend_alone():
+    import subprocess
+    import sys
+
+    code = ("import matplotlib; matplotlib.use('svg'); import calibration.identification.plots, "
+            "calibration.diagnosis.plots, calibration.diagnosis.stationary_plots; print(matplotlib.get_backend())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "svg"

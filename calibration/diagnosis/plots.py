@@ -5,16 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..data.outputs import save_figure  # noqa: E402
-from .response import response_nrp  # noqa: E402
-from .track import fit_track, transmissibility2  # noqa: E402
-from .wheels import line_spectrum  # noqa: E402
+from ..data.outputs import save_figure
+from .response import response_nrp
+from .track import fit_track, transmissibility2
+from .wheels import line_spectrum
 
 
 def plot_diagnosis(result: dict, stem) -> list[Path]:

@@ -3,14 +3,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..data.outputs import save_figure  # noqa: E402,F401  (the one saver; others import it from here too)
-from .in_service import InServiceIdentification  # noqa: E402
+from ..data.outputs import save_figure  # noqa: F401  (the one saver; others import it from here too)
+from .in_service import InServiceIdentification
 
 _COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_bounce": "tab:green",
             "bogie_pitch": "tab:red"}
