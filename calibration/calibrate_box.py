@@ -126,7 +126,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
                   sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
                   min_carbody_share: float = 0.0, min_mac: float = 0.0, log_factors: bool = False,
-                  refine_rounds: int = 10, polish_steps: int = 0, order_change: int = 0,
+                  refine_rounds: int = 10, refine_tol_pct: float = 1e-4, polish_steps: int = 0, order_change: int = 0,
                   swarms: int = 1, done_pct: float | None = None) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``search``: one entry per factor of ``factors`` (a named set, default grouped) or, for a
@@ -135,8 +135,9 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`);
     ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
     16 or more, where a linear swarm crowds the upper end); ``refine_rounds``: of the CasADi
-    refinement; ``polish_steps``: after the refinement, up to this many sequential-LP steps
-    on the full model that keep the MAC floor (:func:`polish_box`; each costs one full
+    refinement, which stops early at ``refine_tol_pct`` [%] on the full model;
+    ``polish_steps``: after the refinement, up to this many sequential-LP steps on the full
+    model that keep the MAC floor (:func:`polish_box`; each costs one full
     eigen-solve). A set's ``polish_only`` factors stay nominal in the
     swarm and the refinement (a model without them) and join the polish (a model with them);
     without a polish they stay nominal. ``order_change``: added to every panel order of a
@@ -184,7 +185,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
         runs.append(run)
         if refine:
             _refine_swarm_best(run, fit, polish_fit, low, high, names, rounds=refine_rounds,
-                               polish_steps=polish_steps, progress=progress, tag=tag)
+                               tol_pct=refine_tol_pct, polish_steps=polish_steps, progress=progress, tag=tag)
         end = run["check"]["max_error_pct"] if run["refinement"] is None else run["refinement"]["end_max_error_pct"]
         run["end"] = end
         if progress and swarms > 1:
@@ -225,7 +226,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
 
 
 def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, high, names, *, rounds: int,
-                       polish_steps: int, progress, tag: str) -> None:
+                       polish_steps: int, progress, tag: str, tol_pct: float = 1e-4) -> None:
     """One swarm's best, refined on the reduced model (CasADi) and, with ``polish_steps``,
     polished on the full model: on ``fit``, or on ``polish_fit`` where the set stages
     factors for the polish (``names`` beyond ``fit``'s, joining nominal); sets the run's
@@ -233,7 +234,7 @@ def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, h
     d = len(fit.model.names)
     if progress:
         progress(f"{tag}refining on the reduced model in rounds, checked on the full model (CasADi/IPOPT)")
-    r = refine_box(fit, run["best"], low[:d], high[:d], rounds=rounds)
+    r = refine_box(fit, run["best"], low[:d], high[:d], rounds=rounds, tol_pct=tol_pct)
     refinement = {"rounds": r.rounds, "statuses": list(r.statuses), "start_max_error_pct": r.start_max_error_pct,
                   "end_max_error_pct": r.max_error_pct, "improved": r.max_error_pct < r.start_max_error_pct}
     p = r.parameters
@@ -265,8 +266,8 @@ def targets_from_identification(ident: ShakerIdentification, *, band: bool = Fal
 
 def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
                            seed: int = 0, refine: bool = True, shaker: ShakerSettings = ShakerSettings(),
-                           progress=None, swarms: int = CAMPAIGN_SWARMS,
-                           done_pct: float = CAMPAIGN_DONE_PCT) -> tuple[BoxCalibration, ShakerIdentification]:
+                           progress=None, swarms: int = CAMPAIGN_SWARMS, done_pct: float = CAMPAIGN_DONE_PCT,
+                           refine_tol_pct: float = 1e-4) -> tuple[BoxCalibration, ShakerIdentification]:
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
@@ -279,4 +280,5 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
-                         refine=refine, progress=progress, swarms=swarms, done_pct=done_pct), ident
+                         refine=refine, progress=progress, swarms=swarms, done_pct=done_pct,
+                         refine_tol_pct=refine_tol_pct), ident
