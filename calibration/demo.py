@@ -39,7 +39,7 @@ from .identification.plots import plot_identification, plot_spectra
 from .optimisers.pso import PSOSettings
 from .progress import counter
 from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
-from .truth.excitation import synth_excitation
+from .truth.excitation import build_model, synth_excitation
 from .truth.in_service import InServiceSettings, synth_in_service
 from .truth.track import LineSpec
 from .validation import plot_validation, validate
@@ -218,7 +218,8 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
     """The stationary excitation test of the box carbody, from synthesis to FRF comparison."""
     root = out / "shaker"
     say("6/11 synthesising a stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
-    truth = synth_excitation(root, seed=DEMO_SEED)
+    model = build_model()  # the effect-free box model: the truth simulator's and the diagnosis's
+    truth = synth_excitation(root, seed=DEMO_SEED, model=model)
     campaign = open_campaign(root)
     say("7/11 identifying its modes (H1, p-LSCF) and calibrating the box model (particle swarm, CasADi refinement)")
     calibration, ident = calibrate_box_campaign(campaign, seed=DEMO_SEED, progress=progress, settings=demo.box_pso,
@@ -231,7 +232,7 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
     frf = compare_frf(campaign, cal_json, ident)
     plot_frf_comparison(frf, out / "shaker_frf.png")
     write_json_atomic(out / "shaker_frf.json", frf.to_json())
-    diagnosis = _diagnose_shaker(out, campaign, truth, progress, demo.stationary)
+    diagnosis = _diagnose_shaker(out, campaign, truth, progress, demo.stationary, model)
     labels = list(truth["frequencies_hz"])
     true_shapes = np.array(truth["mode_shapes"]).T  # (n_sensors, n_modes), sensor order of the campaign
     order = [truth["sensors"].index(s) for s in ident.sensors]
@@ -244,10 +245,10 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
             "pairs": rows, "diagnosis": diagnosis}
 
 
-def _diagnose_shaker(out: Path, campaign, truth: dict, progress, settings: StationarySettings) -> dict:
+def _diagnose_shaker(out: Path, campaign, truth: dict, progress, settings: StationarySettings, model) -> dict:
     from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
 
-    result = diagnose_stationary(campaign, progress=progress, settings=settings)
+    result = diagnose_stationary(campaign, progress=progress, settings=settings, model=model)
     result["wall_time_s"] = result["wall_s"]
     result["plots"] = [p.name for p in plot_stationary_diagnosis(result, out / "shaker_diagnosis")]
     result.pop("_plot")

@@ -51,6 +51,7 @@ from ..data.campaign import Campaign
 from ..data.errors import CampaignError
 from ..identification.in_service import prior_parameters
 from ..models.car2d import CarExtras
+from ..progress import counter
 from .extensions import EXTENSIONS, Extension
 from .records import Layout, RecordSettings, Statistics, layout, read_records, statistics
 from .response import (FIT_NAMES, fit_response, input_coherence, input_noise_power, residual_cross_spectrum,
@@ -418,8 +419,10 @@ def _alarms(ev: dict, s: DiagnoseSettings) -> list[str]:
 @one_blas_thread  # the answer must not depend on the machine's thread count (threads.py)
 def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSettings(), progress=None) -> dict:
     say = progress or (lambda msg: None)
+    stages = counter(progress, 3 + settings.fit_leading, "in-service diagnosis", unit="stage")
     lay = layout(campaign)
     records = read_records(campaign, lay, settings.records, progress=say)
+    stages.update()
     runs = tuple(campaign.run_ids)
     if len(runs) == 1:  # one run: its first and second halves play training and held-out runs
         split = []
@@ -444,6 +447,7 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
     say(f"{len(records)} records, {sum(stats.seconds.values()):.0f} s in {len(stats.S)} (run, speed) cells; "
         f"training runs {sorted(train)}, held out {sorted(test)}")
     base_fit = _baseline(ctx)
+    stages.update()
     say(f"baseline fitted ({base_fit.evaluations} evaluations)")
     ev = _evidence(ctx, base_fit)
     scores = _scores(ev, lay, settings)
@@ -451,6 +455,7 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
     hyps = []
     for name in ranked[:settings.fit_leading]:
         h = _fit_hypothesis(ctx, EXTENSIONS[name], base_fit, ev)
+        stages.update()
         h["evidence_score"] = scores[name]
         hyps.append(h)
         say(f"{name}: held-out gain {h['gain']:.1%} on {h['best_channel']}")
@@ -464,6 +469,8 @@ def diagnose(campaign: Campaign, *, settings: DiagnoseSettings = DiagnoseSetting
         best = None
         cause = "unexplained" if alarms else "none"
     words = _summary(cause, best, alarms, ev, hyps, settings)
+    stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped
+    stages.close()
     masks = ev.pop("masks")
     ev["signal_band_count"] = {n: int(masks[:, c].sum()) for c, n in enumerate(lay.response_names)}
     return {

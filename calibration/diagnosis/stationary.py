@@ -81,6 +81,7 @@ from ..models.box.factor import factorise
 from ..models.box.fit import mac_matrix, sensor_operator
 from ..models.box.reduced import CLUSTER_EXTRA, NEGLIGIBLE, canonical_vectors
 from ..optimisers.pso import PSOSettings
+from ..progress import counter
 from .threads import one_blas_thread
 
 FORMAT = "railcal-diagnosis/1"
@@ -1564,14 +1565,18 @@ def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | 
     t0 = time.perf_counter()
     say = progress or (lambda msg: None)
     s = settings
+    stages = counter(progress, 3 + len(EXTENSIONS), "shaker diagnosis", unit="stage")
     ctx = _context(campaign, s, model, say)
+    stages.update()
     base, swarm = _baseline(ctx)
+    stages.update()
     held = _heldout(ctx, base)
     say(f"baseline: held-out error {np.mean(held['error']):.2f} x noise (training "
         f"{base.train_error / len(ctx.ident.sensors):.2f})")
     fits = {}
     for ext in EXTENSIONS.values():
         fits[ext.name] = ext.fit(ctx, base)[0]
+        stages.update()
         h = _judge(ctx, ext, fits[ext.name], held["error"])
         say(f"{ext.name}: held-out gain {h['gain']:.1%} (training error {h['training_error_mean']:.2f}), "
             + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in h["parameters"].items()))
@@ -1623,6 +1628,8 @@ def diagnose_stationary(campaign: Campaign, *, progress=None, model: BoxModel | 
         pairs_after, mac_after, labels_after = _mode_pairs(ctx, best["_fit"])
         plot.update(mac_after=mac_after, mac_cols_after=labels_after)
     public = [{k: v for k, v in h.items() if not k.startswith("_")} for h in hyps]
+    stages.update()
+    stages.close()
     return {
         "format": FORMAT, "campaign": str(campaign.root), "kind": "stationary_excitation", "cause": cause,
         "evidence": {"summary": words, **ev},
