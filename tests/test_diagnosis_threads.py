@@ -1,5 +1,6 @@
-"""A diagnosis's answer must not depend on the machine's BLAS thread count: both diagnoses
-run on one thread (calibration/diagnosis/threads.py says what two threads changed)."""
+"""A diagnosis's answer must not depend on the machine's BLAS thread count. Both diagnoses
+run on one thread for speed; the round-off amplifier that made two threads answer
+otherwise (calibration/diagnosis/threads.py) is tested below, without the pin."""
 import numpy as np
 from threadpoolctl import threadpool_info, threadpool_limits
 
@@ -26,7 +27,7 @@ def test_a_function_pinned_to_one_blas_thread_runs_on_one_and_leaves_the_setting
 
 
 def test_both_diagnoses_are_pinned_to_one_blas_thread():
-    for entry in (diagnose, diagnose_stationary):
+    for entry in (diagnose, diagnose_stationary):  # for speed: the answers no longer depend on it (below)
         assert entry.__wrapped__.__name__ == entry.__name__  # the one_blas_thread wrapper
         assert entry.__code__ is one_blas_thread(lambda: None).__code__
 
