@@ -219,7 +219,7 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
     root = out / "shaker"
     say("6/11 synthesising a stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
     model = build_model()  # the effect-free box model: the truth simulator's and the diagnosis's
-    truth = synth_excitation(root, seed=DEMO_SEED, model=model)
+    truth = synth_excitation(root, seed=DEMO_SEED, model=model, overwrite=True)  # a rerun replaces its own test
     campaign = open_campaign(root)
     say("7/11 identifying its modes (H1, p-LSCF) and calibrating the box model (particle swarm, CasADi refinement)")
     calibration, ident = calibrate_box_campaign(campaign, seed=DEMO_SEED, progress=progress, settings=demo.box_pso,
