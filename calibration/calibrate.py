@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .data.campaign import read_input_file
 from .data.errors import InputError
 from .models.batch import MASS_NAMES, STIFFNESS_NAMES, LinearFamily
 from .models.parameters import CarParameters
@@ -41,8 +42,8 @@ def read_targets(path, labels=LABELS, model: str = "car2d") -> dict[str, float]:
     """{label: frequency [Hz]} from [[targets]] tables; ``labels`` are the model's mode labels."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        data = tomllib.loads(read_input_file(path))  # checked first: a FIFO or device is refused, not read for ever
+    except tomllib.TOMLDecodeError as e:
         raise InputError(f"cannot read targets: {e}", path=path) from None
     rows = data.get("targets")
     if not isinstance(rows, list) or not rows:
@@ -77,8 +78,8 @@ def read_priors(path, searchable=None) -> tuple[SearchParameter, ...]:
     searchable = SEARCHABLE if searchable is None else tuple(searchable)
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        data = tomllib.loads(read_input_file(path))
+    except tomllib.TOMLDecodeError as e:
         raise InputError(f"cannot read priors: {e}", path=path) from None
     params = []
     for name, spec in data.items():

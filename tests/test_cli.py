@@ -211,3 +211,32 @@ def test_demo_never_replaces_a_campaign_folder_railcal_did_not_write(tmp_path, c
     code, _, err = run(["demo", "--out", tmp_path / "out", "--quiet"], capsys)
     assert code == 2 and str(mine) in err and "not a campaign railcal wrote" in err
     assert (mine / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("command", [
+    ["calibrate", "--targets", "{fifo}", "--out", "{out}"],
+    ["calibrate", "--targets", "{targets}", "--priors", "{fifo}", "--out", "{out}"],
+    ["validate", "{campaign}", "--calibration", "{fifo}", "--out", "{out}"],
+    ["export-fmu", "--calibration", "{fifo}", "--out", "{out}"],
+    ["crosscheck", "--calibration", "{fifo}", "--out", "{out}"],
+])
+def test_a_fifo_given_as_an_input_file_is_refused_not_waited_on(inputs, tmp_path, capsys, command):
+    import signal
+
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+
+    class Hung(BaseException):  # not an OSError: no reader may turn it into an input error
+        pass
+
+    def expire(signum, frame):  # a blocking open() or read() fails the test instead of hanging the suite
+        raise Hung("still waiting after 10 s")
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(10)
+    try:
+        code, _, err = run([a.format(fifo=fifo, out=tmp_path / "o.json", **inputs) for a in command], capsys)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    assert code == 2 and "in.fifo" in err and "FIFO" in err, err
+    assert not (tmp_path / "o.json").exists()

@@ -23,7 +23,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import tomli_w
 
-from .campaign import NAME_RE, TRACK_BANDS, CampaignMeta
+from .campaign import NAME_RE, TRACK_BANDS, CampaignMeta, read_input_file
 from .errors import CampaignError, InputError
 
 #: The ``format`` key of every JSON result, by kind. A reader accepts a file without the key
@@ -298,9 +298,10 @@ def read_result(path, kinds: Iterable[str]) -> dict:
     unknown format refused (:class:`InputError` naming the file and key)."""
     path = Path(path)
     kinds = tuple(kinds)
+    text = read_input_file(path)  # a regular file of bounded size: a FIFO or /dev/zero never blocks
     try:
-        obj = json.loads(path.read_text())
-    except (OSError, ValueError, UnicodeDecodeError) as e:
+        obj = json.loads(text)
+    except ValueError as e:
         raise InputError(f"not a readable JSON result: {e}", path=path) from None
     if not isinstance(obj, dict):
         raise InputError(f"expected a JSON object, got {type(obj).__name__}", path=path)
