@@ -101,9 +101,6 @@ def crosscheck_car(p: CarParameters, distance: np.ndarray, level: np.ndarray, *,
 
 
 def _plot(res, ref, fmu, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from calibration.identification.plots import save_figure

@@ -240,3 +240,26 @@ def test_a_fifo_given_as_an_input_file_is_refused_not_waited_on(inputs, tmp_path
         signal.signal(signal.SIGALRM, old)
     assert code == 2 and "in.fifo" in err and "FIFO" in err, err
     assert not (tmp_path / "o.json").exists()
+
+
+def test_allow_outside_lets_a_command_read_runs_linked_from_elsewhere(tiny_campaign, tmp_path, capsys):
+    """A run linked from outside the campaign is refused by default (exit 2, the file named);
+    --allow-outside reads it, so the refusal about the link goes away."""
+    outside = tmp_path / "elsewhere.csv"
+    (tiny_campaign / "runs" / "run_a.csv").rename(outside)
+    (tiny_campaign / "runs" / "run_a.csv").symlink_to(outside)
+    out = tmp_path / "ident.json"
+    code, _, err = run(["identify", tiny_campaign, "--out", out, "--quiet"], capsys)
+    assert code == 2 and "run_a.csv" in err and "outside the campaign folder" in err
+    code, _, err = run(["identify", tiny_campaign, "--out", out, "--quiet", "--allow-outside"], capsys)
+    assert "outside the campaign folder" not in err
+
+
+def test_a_campaign_with_priors_is_refused_for_either_model(tiny_campaign, tmp_path, capsys):
+    """A campaign brings its own priors: --priors beside it would be silently dropped."""
+    priors = tmp_path / "p.toml"
+    priors.write_text("[m_v]\nnominal = 38000.0\nlow = 36000.0\nhigh = 40000.0\n")
+    for model, method in (("car2d", "ce"), ("box", "pso")):
+        code, _, err = run(["calibrate", tiny_campaign, "--model", model, "--method", method, "--priors", priors,
+                            "--out", tmp_path / "c.json", "--quiet"], capsys)
+        assert code == 2 and "--priors" in err, (model, err)
