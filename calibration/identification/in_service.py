@@ -63,10 +63,11 @@ class IdentifySettings:
     # The two rails are told apart only where speeds differ enough to decorrelate them:
     # 1 - |coherence between the two inputs|^2 (the fraction of the trailing rail that is
     # not the leading rail's delayed copy; the two-input estimate's variance grows as its
-    # inverse). Its median over the carbody band was 0.62 on a 2-journey campaign at
-    # 27.6-34.1 m/s and 0.009 on journeys all at 30 m/s, where the fit returned 3.73 Hz
-    # for a 0.906 Hz carbody bounce. Below this the two-input estimate is not used.
-    min_separability: float = 0.1
+    # inverse). Its median over the carbody band was 0.62-0.70 on campaigns whose carbody
+    # modes came within 1.2 %, 0.149 on two 2 x 5 km campaigns whose carbody fits were off
+    # by 4-6 % with a spurious pole, and 0.009 at one speed (3.73 Hz for a 0.906 Hz
+    # carbody bounce). Below this the two-input estimate is not used.
+    min_separability: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -323,15 +324,19 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
                                         "input_output_fit", src, fdd_hz, prior_f.get(lbl), std))
     # what the input-output fit could not give (or, without axle boxes, everything) comes
     # from the seed-faithful FDD peaks, labelled by the prior model's frequency order
+    # (a peak within 5 % of a mode already identified is that mode, as in _rejected)
     missing = [lbl for lbl in RIGID_LABELS if lbl not in {m.label for m in modes}]
     est = {"bogie_pitch": fdd_estimate("bogie_pitch", settings.bogie_band),
            "bogie_bounce": fdd_estimate("bogie_bounce", settings.bogie_band)}
     cands = sorted([(fr, pr) for name, r in fdd.results.items() if r.analysis.role == "bogie_bounce"
                     for fr, pr in peaks.get(name, []) if settings.carbody_band[0] <= fr <= settings.carbody_band[1]],
                    key=lambda x: -x[1])[:2]
-    order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
-    for lbl, c in zip(order, sorted(cands)):
-        est[lbl] = c
+    order = [lbl for lbl in sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k]) if lbl in missing]
+    if len(order) == 2:  # frequency order labels a pair only when neither was fitted
+        for lbl, c in zip(order, sorted(cands)):
+            est[lbl] = c
+    est = {lbl: e for lbl, e in est.items()
+           if e and not any(abs(e[0] / m.frequency_hz - 1) < 0.05 for m in modes)}
     undetermined = []
     for lbl in missing:
         if est.get(lbl):
@@ -340,9 +345,7 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
         else:
             reason = why_not.get(lbl, "no input-output fit (no axle-box sensors or geometry)" if not have_io
                                  else "the input-output fit found no pole for it")
-            undetermined.append(UndeterminedMode(lbl, f"{reason}; no FDD peak in the "
-                                                      f"{'carbody' if lbl.startswith('carbody') else 'bogie'} band "
-                                                      f"either"))
+            undetermined.append(UndeterminedMode(lbl, f"{reason}; no FDD peak stands in for it"))
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
 
     rejected = _rejected(peaks, fdd, modes, lines)
@@ -395,9 +398,13 @@ def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, 
     pitch = [p for p in cb if signs[p] < 0]
     if len(bounce) == 1 and len(pitch) == 1:
         cb_labels = {bounce[0]: "carbody_bounce", pitch[0]: "carbody_pitch"}
-    else:  # signs inconclusive: frequency order of the prior model
-        order = sorted(("carbody_bounce", "carbody_pitch"), key=lambda k: prior_f[k])
-        cb_labels = dict(zip(cb, order))
+    else:  # signs inconclusive: each pole takes the nearest prior frequency, one pole per label
+        pairs = sorted((abs(np.log(p.frequency_hz / prior_f[lbl])), i, lbl) for i, p in enumerate(cb)
+                       for lbl in ("carbody_bounce", "carbody_pitch"))
+        cb_labels = {}
+        for _, i, lbl in pairs:
+            if cb[i] not in cb_labels and lbl not in cb_labels.values():
+                cb_labels[cb[i]] = lbl
     fitted = {lbl: (p, "trailing_rail") for p, lbl in cb_labels.items()}
     w_bb = w2 if sep_bb >= settings.min_separability else gate(coh[:, 0])
     bb = _strongest(fit_poles(f, H[:, 0, 0], settings.bogie_band, 1 + settings.extra_poles, weights=w_bb), 1)
