@@ -149,7 +149,7 @@ def test_manchester_benchmark_reproduces_the_seed_table_2_row(tmp_path, capsys):
     capsys.readouterr()
     modes = json.loads(out.read_text())["modes"]
     for label, published in SEED_TABLE2_MANCHESTER.items():
-        f = np.mean([m["frequency_hz"] for m in modes if m["label"] == label])
+        f = np.mean([m["frequency_hz"] for m in modes if m["family"] == label])  # both bogies' modes
         assert f == pytest.approx(published, rel=0.02), label
 
 
@@ -166,5 +166,6 @@ def test_modes_command_pairs_each_bogie_mode_with_its_own_damping(tmp_path, caps
     out = tmp_path / "m.json"
     assert main(["modes", "--out", str(out)]) == 0
     capsys.readouterr()
-    bounce = [m for m in json.loads(out.read_text())["modes"] if m["label"] == "bogie_bounce"]
+    bounce = [m for m in json.loads(out.read_text())["modes"] if m["family"] == "bogie_bounce"]
     assert len(bounce) == 2 and bounce[0]["damping_ratio"] != bounce[1]["damping_ratio"]
+    assert len({m["label"] for m in bounce}) == 2  # one label each
