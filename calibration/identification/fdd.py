@@ -15,6 +15,8 @@ Pipeline here (pure functions of arrays; :func:`segmental_fdd` streams the runs)
    segment lies in one gap-free block with every analysis channel valid, band-passes it
    (zero-phase Butterworth, seed: 6th order 0.25-25 Hz) with filter padding from the
    surrounding data, resamples it to ``fs_analysis``, and forms the Welch CSD matrix.
+   Irregularly sampled runs (allowed by the campaign format) first have each gap-free block
+   put on a uniform grid (:func:`calibration.signals.resample.regular_run`).
 3. Each segment's CSD is normalised to unit in-band power before summation (the seed
    sums raw singular values, which lets the fastest, loudest segments dominate).
 4. Singular values (and the CSD matrices, for mode shapes) are summed over the first

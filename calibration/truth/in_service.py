@@ -19,7 +19,9 @@ With ``carbody_sensors`` the carbody carries three floor accelerometers (above e
 centre and at the car centre, the EN 12299 ride-comfort positions), in g.
 
 Logger drop-outs leave gaps (rows missing) and short NaN bursts. Everything random comes
-from one seeded ``numpy.random.Generator``.
+from one seeded ``numpy.random.Generator``. Options give test rides at one constant speed
+per journey (``constant_speed``) and irregular sampling (``time_jitter``: the logger samples
+at jittered instants and records them in the time column).
 
 A hidden effect (:mod:`calibration.truth.effects`) changes the car (:class:`TruthCar`):
 its assembly (:class:`calibration.models.car2d.CarExtras`), where the bogie sensors
