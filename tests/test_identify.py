@@ -86,7 +86,7 @@ def test_modes_command_reports_labelled_frequencies(tmp_path, capsys):
     out = tmp_path / "modes.json"
     assert main(["modes", "--model", "car2d", "--param", "J_b=10024", "--out", str(out)]) == 0
     data = json.loads(out.read_text())
-    pitch = [m for m in data["modes"] if m["label"] == "bogie_pitch"]
+    pitch = [m for m in data["modes"] if m["family"] == "bogie_pitch"]
     p = data["parameters"]
     assert pitch[0]["frequency_hz"] == pytest.approx(np.sqrt(2 * p["k_p"] * p["L_b"] ** 2 / 10024) / (2 * np.pi))
     assert all("damping_ratio" in m for m in data["modes"])
