@@ -183,7 +183,8 @@ def cmd_identify(args) -> int:
     out["plot_spectra"] = None if spectra is None else str(spectra)
     write_result(args.out, out, "identification")
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
-    print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected_peaks)} peaks rejected; "
+    open_ = "".join(f"; {u.label} not determined" for u in result.undetermined)
+    print(f"identified {len(result.modes)} modes ({modes}){open_}; {len(result.rejected_peaks)} peaks rejected; "
           f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote "
           f"{_names(args.out, png, spectra)}")
     return EXIT_OK
