@@ -1,5 +1,8 @@
-"""Shared fixtures: small campaigns written by the project's own writer."""
+"""Shared fixtures: small campaigns written by the project's own writer; the BLAS thread
+cap of ``make test``'s workers; the ``slow`` tier."""
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
@@ -30,12 +33,46 @@ def tiny_columns(n: int = 400) -> dict[str, np.ndarray]:
             "bogie1_gyro_pitch": 0.5 * np.sin(2 * np.pi * 7 * t)}
 
 
+def _cap_blas_threads_per_worker():
+    """For speed only, never for results: under pytest-xdist each worker gets at most
+    cores / workers BLAS threads, so that ``make test``'s workers do not oversubscribe the
+    cores (two workers with two OpenBLAS threads each on two cores ran test_ema.py at
+    52 s instead of 22 s). Results do not depend on it (tests/test_ema.py and
+    test_box_calibration.py compare one and two threads); ``RAILCAL_TEST_BLAS_CAP=off``
+    runs without it, and a run without xdist (``-n 0``) never has it."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if workers <= 1 or os.environ.get("RAILCAL_TEST_BLAS_CAP", "on") == "off":
+        return None
+    import scipy.linalg  # noqa: F401  (scipy's own OpenBLAS must be loaded for the cap to reach it)
+    from threadpoolctl import threadpool_limits
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return threadpool_limits(max(1, cores // workers), user_api="blas")
+
+
+_BLAS_CAP = _cap_blas_threads_per_worker()
+
+
+#: fixtures that synthesise a campaign, build FMUs or diagnose one (seconds on one core of
+#: the 2-core development machine): a test using one is in the ``slow`` tier, which
+#: ``make check`` leaves out and ``make test`` runs
+SLOW_FIXTURES = {
+    "synthetic_campaign": 32,  # a six-journey in-service campaign
+    "car_fmus": 36,  # the car FMU compiled for FMI 2 and 3
+    "shaker": 26,  # test_box_calibration.py: a 240 s shaker test, synthesised and identified
+    "diagnosed": 50,  # test_diagnosis_stationary.py: each case a diagnosed shaker campaign
+}
+
+
 def pytest_collection_modifyitems(config, items):
     """Groups for pytest-xdist's ``--dist loadgroup`` (``make test``): every test file runs on
     one worker, so its module and session fixtures are built once, except tests marked
     ``spread`` (a diagnosed campaign of a minute or two each), which are a group each so
-    that the workers share them."""
+    that the workers share them. Tests using a :data:`SLOW_FIXTURES` fixture are marked
+    ``slow``."""
     for item in items:
+        if SLOW_FIXTURES.keys() & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
         group = item.nodeid if item.get_closest_marker("spread") else item.nodeid.split("::")[0]
         item.add_marker(pytest.mark.xdist_group(group))
 

@@ -164,6 +164,7 @@ def test_validate_refuses_a_file_that_is_not_a_calibration(synthetic_campaign, t
 
 
 # ------------------------------------------------ regressions found in review
+@pytest.mark.slow
 def test_refinement_is_judged_by_the_users_objective_when_targets_are_unreachable():
     from calibration.optimisers.cross_entropy import SEED_TABLE7
     from calibration.optimisers.objectives import max_relative_error

@@ -143,6 +143,7 @@ def test_nothing_above_80_hz_but_sensor_noise_through_the_anti_alias_filter(synt
     assert np.mean(P[high]) < 0.1 * 5 * white  # decimating without the filter would give 5 x white
 
 
+@pytest.mark.slow
 def test_same_seed_same_files_other_seed_other_vehicle(synthetic, tmp_path, model):
     root, truth = synthetic
     again = tmp_path / "test"
