@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 from conftest import COARSE_BOX_ORDERS
+from threadpoolctl import threadpool_limits
 
 from calibration.calibrate_box import box_search, calibrate_box, targets_from_identification
 from calibration.cli import main
@@ -48,6 +49,7 @@ def _strongest_separated(modal):
     return select_targets(f, modal.sensor_shapes, strength=strength, n=4)
 
 
+@pytest.mark.slow
 def test_identification_finds_the_strongest_separated_true_modes_with_their_shapes(shaker):
     _, _, modal, ident = shaker
     shapes = np.column_stack([m.shape for m in ident.modes])
@@ -58,6 +60,24 @@ def test_identification_finds_the_strongest_separated_true_modes_with_their_shap
         assert mac[k] >= 0.95
 
 
+@pytest.mark.slow
+def test_identification_is_the_same_on_one_and_two_blas_threads(shaker):
+    """The identified modes are the data's, not the arithmetic's: the same clusters, and
+    values equal to far below the identification error (0.01-0.3 % in frequency against
+    the truth), on one and on two BLAS threads (tests/test_ema.py states the tolerances)."""
+    from test_ema import assert_same_modes
+    root = shaker[0]
+    with threadpool_limits(1):
+        one = identify_excitation(open_campaign(root))
+    with threadpool_limits(2):
+        two = identify_excitation(open_campaign(root))
+    assert len(one.modes) >= 6
+    assert_same_modes(one.modes, two.modes)
+    assert [r["frequency_hz"] for r in one.rejected] == pytest.approx([r["frequency_hz"] for r in two.rejected],
+                                                                      rel=1e-9)
+
+
+@pytest.mark.slow
 def test_identification_reports_coherence_damping_and_auto_mac(shaker):
     _, _, _, ident = shaker
     out = ident.to_json()
@@ -67,15 +87,23 @@ def test_identification_reports_coherence_damping_and_auto_mac(shaker):
     assert np.allclose(np.diag(A), 1.0) and A.shape == (len(out["modes"]),) * 2
 
 
+@pytest.mark.slow
 def test_swarm_and_refinement_bring_the_model_to_the_identified_modes(shaker, model):
-    """This campaign has a close pair at 13.252 / 13.265 Hz (modal overlap about 26): on one
-    BLAS thread identification keeps one mode there, a 57/43 mixture of the pair, which no
-    single model mode matches above MAC 0.57. Each target carries its half-power band, so
-    that mode is compared with the span of the model modes in it."""
+    """This campaign has a close pair at 13.252 / 13.265 Hz (modal overlap about 26), which
+    identification reports as two modes inside one half-power band, 13.235 and 13.307 Hz,
+    each a mixture of the pair (both shapes in its span, MAC 0.99): their 0.5 % split is the
+    one-exciter test's error, not the truth's, and no model fits it (0.21 % left after the
+    refinement). The calibration takes the modes whose half-power band holds no other
+    identified mode; each target carries its band."""
     root, truth, _, ident = shaker
     campaign = open_campaign(root)
     sensors = tuple(campaign.meta.sensor(n) for n in ident.sensors)
-    result = calibrate_box(targets_from_identification(ident, band=True), sensors, box_search(campaign.meta.priors),
+    targets = targets_from_identification(ident, band=True)
+    f = np.array([t.frequency_hz for t in targets])
+    half_power = np.array([m.damping_ratio * m.frequency_hz for m in ident.modes])
+    alone = tuple(t for i, t in enumerate(targets) if np.sum(np.abs(f - f[i]) < half_power[i]) == 1)
+    assert len(targets) - len(alone) == 2 and len(alone) >= 6  # the pair, and only the pair
+    result = calibrate_box(alone, sensors, box_search(campaign.meta.priors),
                            settings=PSOSettings(particles=60, iterations=40, target=0.5), seed=1, model=model)
     assert result.pso["best_full_pct"] <= 0.5 or result.pso["iterations"] == 40
     assert result.max_error_pct <= 0.05  # after the refinement, judged on the full model
@@ -253,10 +281,13 @@ def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
 def test_the_mac_derivatives_are_those_of_the_full_model(model):
     """The partners' MAC derivatives in log factors (Nelson's eigenvector derivative) agree
     with central differences of the full model along a random direction, as the frequency
-    derivatives do."""
+    derivatives do. No target's partner has a rival in a double eigenvalue: the model's
+    10.27 Hz pair, which no factor moves, has no vectors of its own, and with the first
+    vertical bending's template its span's MAC rivals the partner's (0.95), so which of them
+    a step pairs with was the CPU kernel's choice."""
     S = sensor_operator(model, SENSOR_GRID)
     targets = tuple(ModeTarget(t, f, template(t, SENSOR_GRID, 24.5, 3.38))
-                    for t, f in (("vertical_bending_1", 10.0), ("torsion_1", 12.0), ("breathing", 18.5)))
+                    for t, f in (("lateral_vertical_1", 9.0), ("torsion_1", 12.0), ("breathing", 18.5)))
     fit = BoxFit(model, S, targets, min_mac=0.8)
     rng = np.random.default_rng(3)
     p = np.exp(rng.uniform(-0.3, 0.3, len(model.names)))
@@ -322,6 +353,7 @@ def test_the_polish_lifts_an_unsound_pairing_over_the_floor_when_the_score_gains
     assert r.statuses == ("kept",) and r.max_error_pct == pytest.approx(0.5, abs=0.01)
 
 
+@pytest.mark.slow
 def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(model):
     """The credible set: the swarm and the refinement move 14 factors, the end-wall and
     floor-floor joints join, nominal, in the polish; the file records the set, and the model
@@ -351,6 +383,7 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
             calibrated_box_model(bad)
 
 
+@pytest.mark.slow
 def test_independent_swarms_are_each_refined_and_the_lowest_full_model_error_is_the_answer(model):
     """Split into swarms, the particles gather on as many basins; each swarm's best is refined
     and polished, the file keeps all of them, and the answer is the one that ends lowest on
@@ -374,6 +407,7 @@ def test_independent_swarms_are_each_refined_and_the_lowest_full_model_error_is_
                       settings=PSOSettings(particles=8, iterations=2), swarms=5)
 
 
+@pytest.mark.slow
 def test_no_further_swarm_runs_once_one_ends_refined_within_the_done_error(model):
     """The swarm's own stop (the seed's 0.5 %) is no proof of the right basin, so a campaign
     searches on until a swarm ends, refined, within ``done_pct``: met at once, one swarm
@@ -397,6 +431,7 @@ def test_no_further_swarm_runs_once_one_ends_refined_within_the_done_error(model
     assert swarms_run(float("inf"), refine=False) == 3  # the swarm's stop, 0.0 here, decides
 
 
+@pytest.mark.slow
 def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     root = shaker[0]
     assert main(["calibrate", str(root), "--model", "box", "--method", "ce", "--out", str(tmp_path / "c.json")]) == 2
@@ -425,6 +460,7 @@ def test_the_summary_names_a_pairing_a_hair_under_the_mac_floor():
     assert _unsound(fit[:1]) == ""
 
 
+@pytest.mark.slow
 def test_identify_writes_modes_and_plots_for_a_shaker_campaign(shaker, tmp_path):
     out = tmp_path / "id.json"
     assert main(["identify", str(shaker[0]), "--out", str(out), "--quiet"]) == 0

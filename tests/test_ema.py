@@ -9,9 +9,10 @@ mode) with band-random force 5-50 Hz at 200 Hz and 5 % noise on every accelerome
 import numpy as np
 import pytest
 import scipy.signal
+from threadpoolctl import threadpool_limits
 
 from calibration.identification.excitation import ShakerSettings
-from calibration.identification.ema import (FRFEstimate, Mode, auto_mac, frf_h1, lscf, mac, mode_shapes,
+from calibration.identification.ema import (FRFEstimate, Mode, auto_mac, frf_h1, lscf, mac, mode_shapes, mpc,
                                             peak_picking, plot_mac, plot_stabilisation)
 
 F_N = np.array([9.2, 11.5, 13.4, 15.8, 16.2, 18.5])  # [Hz]
@@ -143,38 +144,101 @@ def test_lscf_on_noisy_h1_finds_frequencies_within_half_a_percent_and_shapes(sha
     assert fit.relative_error.max() < 0.1
 
 
-# The pair's clusters hold poles of 11 and 10 of the 21 orders (9, 40 %, make a mode) on an
-# AMD EPYC machine (OpenBLAS, one thread), with the frequency tolerance scaled by the poles'
-# damping and MAC 0.8 (ShakerSettings); at a fixed 0.2 % and MAC 0.9 the upper mode's held 7
-# and round-off decided whether it was kept.
-def test_a_pair_a_seventh_of_its_bandwidth_apart_is_kept_apart_by_shape():
+PAIR_F, PAIR_ZETA = np.array([11.0, 13.011, 13.057, 16.0]), np.array([0.02, 0.013, 0.014, 0.02])
+_pair_rng = np.random.default_rng(11)
+PAIR_PHI, PAIR_PHI_F = _pair_rng.standard_normal((27, 4)), _pair_rng.uniform(0.6, 1.4, 4)
+
+
+@pytest.fixture(scope="module")
+def pair_test():
+    """A shaker test of four modes, two of them 0.35 % apart (see the test below)."""
+    return frf_h1(*simulate_shaker_test(modal_filters(PAIR_F, PAIR_ZETA, PAIR_PHI_F), PAIR_PHI, seed=5), FS,
+                  nperseg=4096)
+
+
+def _shaker_modes(est, H=None):
+    """The modes railcal identify's clustering (ShakerSettings) selects in 8-19 Hz."""
+    shaker = ShakerSettings()
+    return lscf(est.frequency, est.H if H is None else H, (8.0, 19.0), shaker.orders).select_modes(
+        min_fraction=shaker.min_fraction, cluster_tol=shaker.cluster_tol, cluster_mac=shaker.cluster_mac,
+        bandwidth_fraction=shaker.bandwidth_fraction)
+
+
+def test_a_pair_a_seventh_of_its_bandwidth_apart_is_kept_apart_by_shape(pair_test):
     """Two modes 0.35 % apart with 1.3-1.4 % damping (modal overlap 7, as a box carbody's
     torsion and lateral-vertical modes can fall): under noise their poles wander in damping
     and shape from order to order, so few are stable in all three, and a cut on frequency
-    alone merges them. Clustering on frequency and shape finds both. Measured here: 0.11 %
-    and 0.16 % off, MAC 0.92 and 0.96 (one BLAS thread, as ``make test`` runs; on two the
-    lower mode's MAC is 0.86, 0.88 with the clustering before, under the 0.9 asserted); with
-    the Hann-windowed H1 the residues at the *true* poles reach MAC 0.98-0.99, so the pair's
-    shapes are limited by its poles. This is the edge of a one-exciter test: of three random
-    shape draws at this spacing, one gives a mixed pair (a second exciter position is the
-    remedy)."""
-    f_n, zeta = np.array([11.0, 13.011, 13.057, 16.0]), np.array([0.02, 0.013, 0.014, 0.02])
-    rng = np.random.default_rng(11)
-    phi, phi_f = rng.standard_normal((27, 4)), rng.uniform(0.6, 1.4, 4)
-    est = frf_h1(*simulate_shaker_test(modal_filters(f_n, zeta, phi_f), phi, seed=5), FS, nperseg=4096)
-    shaker = ShakerSettings()  # the clustering railcal identify uses
-    modes = lscf(est.frequency, est.H, (8.0, 19.0), shaker.orders).select_modes(
-        min_fraction=shaker.min_fraction, cluster_tol=shaker.cluster_tol, cluster_mac=shaker.cluster_mac,
-        bandwidth_fraction=shaker.bandwidth_fraction)
+    alone merges them. Clustering on frequency and shape finds both, each within 0.2 % of
+    its truth. The partners' shapes are limited by their poles, which the fraction places
+    0.085 Hz apart instead of 0.046: MAC 0.81 and 0.96 here (0.81-0.88 and 0.94-0.97 over
+    noise seeds 5-9; the residues fitted at the identified poles give the same, at the
+    *true* poles 0.98-0.99), while the separated modes' reach 0.999. This is the edge of a
+    one-exciter test; a second exciter position is the remedy."""
+    modes = _shaker_modes(pair_test)
     for m in modes:  # never a merged cluster: each mode found is one true mode, its frequency and shape
-        r = max(range(f_n.size), key=lambda r: mac(m.shape, phi[:, r])[0, 0])
-        assert m.frequency_hz == pytest.approx(f_n[r], rel=5e-3)
-        assert mac(m.shape, phi[:, r])[0, 0] >= 0.9
-    assert len(modes) == f_n.size, f"found {[round(m.frequency_hz, 3) for m in modes]}"
-    for r, fn in enumerate(f_n):
-        m = max(modes, key=lambda m: mac(m.shape, phi[:, r])[0, 0])
-        assert m.frequency_hz == pytest.approx(fn, rel=5e-3)
-        assert mac(m.shape, phi[:, r])[0, 0] >= 0.9
+        r = max(range(PAIR_F.size), key=lambda r: mac(m.shape, PAIR_PHI[:, r])[0, 0])
+        assert m.frequency_hz == pytest.approx(PAIR_F[r], rel=2e-3)
+        assert mac(m.shape, PAIR_PHI[:, r])[0, 0] >= (0.8 if r in (1, 2) else 0.99)
+    assert len(modes) == PAIR_F.size, f"found {[round(m.frequency_hz, 3) for m in modes]}"
+    for r, fn in enumerate(PAIR_F):
+        m = max(modes, key=lambda m: mac(m.shape, PAIR_PHI[:, r])[0, 0])
+        assert m.frequency_hz == pytest.approx(fn, rel=2e-3)
+    lower, upper = sorted(modes, key=lambda m: m.frequency_hz)[1:3]
+    assert mac(lower.shape, upper.shape)[0, 0] < 0.5  # two shapes, not one seen twice
+
+
+# Far below the identification error (0.01-0.2 % in frequency, 0.01-0.4 in shape entries
+# against the truth above): the modes move by at most 1e-11 in frequency, 1e-8 in damping and
+# 1e-6 in shape entries between one and two BLAS threads and OpenBLAS's Haswell, Sandybridge
+# and Prescott kernels (here and on the box shaker test of test_box_calibration.py).
+ROUND_OFF_FREQUENCY, ROUND_OFF_DAMPING, ROUND_OFF_SHAPE = 1e-9, 1e-6, 1e-5
+
+
+def assert_same_modes(a: list[Mode], b: list[Mode]):
+    """The same modes, up to round-off: the same count, poles per cluster, and values."""
+    assert [m.n_stable for m in a] == [m.n_stable for m in b]
+    for x, y in zip(a, b):
+        assert x.frequency_hz == pytest.approx(y.frequency_hz, rel=ROUND_OFF_FREQUENCY)
+        assert x.damping_ratio == pytest.approx(y.damping_ratio, rel=ROUND_OFF_DAMPING)
+        assert np.abs(x.shape - y.shape).max() < ROUND_OFF_SHAPE
+
+
+def test_the_identified_modes_do_not_depend_on_the_blas_thread_count(pair_test):
+    """The stabilisation diagram is the data's, not the arithmetic's: p-LSCF on one and on two
+    BLAS threads gives the same modes, and so does data changed by round-off (1e-13, what
+    another CPU's kernels change). In the monomial basis the normal equations had
+    condition numbers of 1e13-1e17, a physical pole moved by up to 1 % between orders'
+    round-off and the pair's clusters gained or lost poles with the thread count."""
+    with threadpool_limits(1):
+        one = _shaker_modes(pair_test)
+    with threadpool_limits(2):
+        two = _shaker_modes(pair_test)
+    assert len(one) == PAIR_F.size
+    assert_same_modes(one, two)
+    noise = 1 + 1e-13 * np.random.default_rng(0).standard_normal(pair_test.H.shape)
+    assert_same_modes(one, _shaker_modes(pair_test, pair_test.H * noise))
+
+
+def test_a_computational_pole_stable_over_orders_is_not_a_mode(pair_test):
+    """Near the band's lower edge (8 Hz) the fraction holds a lightly damped pole over most
+    orders that no mode put there; its numerators are no mode shape (their phases spread,
+    MPC far under a mode's), so it is not selected."""
+    stab = lscf(pair_test.frequency, pair_test.H, (8.0, 19.0), ShakerSettings().orders)
+    edge = [op.shapes[:, i] for op in stab.orders for i in np.flatnonzero(op.stable_frequency)
+            if op.frequency_hz[i] < 8.2]
+    assert len(edge) >= 10 and np.median([mpc(x) for x in edge]) < 0.5  # stable in frequency, no real shape
+    clustering = dict(min_fraction=0.4, cluster_tol=0.002, cluster_mac=0.8, bandwidth_fraction=0.25)
+    assert min(m.frequency_hz for m in stab.select_modes(**clustering)) > 10.5
+    assert min(m.frequency_hz for m in stab.select_modes(**clustering, min_mpc=0.0)) < 8.2
+    assert all(mpc(m.shape) > 0.9 for m in stab.select_modes(**clustering))
+
+
+def test_phase_collinearity_is_one_for_a_scaled_real_shape_and_small_for_spread_phases():
+    rng = np.random.default_rng(4)
+    real = rng.standard_normal(27)
+    assert mpc(real * (0.3 - 2.1j)) == pytest.approx(1.0)
+    assert mpc(real + 1j * rng.standard_normal(27)) < 0.3  # independent real and imaginary parts
+    assert mpc(np.exp(1j * np.linspace(0, np.pi, 40, endpoint=False))) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_peak_picking_finds_the_separated_modes_and_merges_the_close_pair(exact, shaker_test):
