@@ -18,7 +18,7 @@ from .data.campaign import Campaign
 from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
-from .models.box.shinkansen import GROUPED_RANGE
+from .models.box.shinkansen import GROUPED_RANGE, ORDERS
 from .models.box.fit import BoxFit, ModeTarget, polish_box, refine_box, sensor_operator
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
@@ -41,6 +41,7 @@ class BoxCalibration:
     identifiability: dict
     search: dict = field(default_factory=dict)
     factor_set: str = "grouped"
+    order_change: int = 0  # added to every panel order of the model calibrated (negative: coarse)
 
     def to_json(self, ident: ShakerIdentification | None = None) -> dict:
         """The calibration file; with the identification it was fitted to, its modes too
@@ -50,6 +51,8 @@ class BoxCalibration:
                "max_error_pct": self.max_error_pct, "pso": self.pso, "refinement": self.refinement,
                "reduced_vs_full_pct_at_pso_optimum": self.reduced_vs_full_pct,
                "identifiability": self.identifiability, "search": self.search}
+        if self.order_change:  # a coarse model: whoever rebuilds it from the file must use the same orders
+            out["order_change"] = self.order_change
         if ident is not None:
             out["identified_modes"] = ident.to_json()["modes"]
         return out
@@ -76,9 +79,10 @@ def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tup
 
 def calibrated_box_model(calibration: dict):
     """The box model a calibration file describes and its factors: (model, {name: factor}),
-    the model assembled from the file's ``factor_set`` (files without one: grouped), every
-    factor it does not name nominal. InputError for an unknown set or factor, or a factor
-    that is not a positive number."""
+    the model assembled from the file's ``factor_set`` (files without one: grouped) at its
+    panel orders plus ``order_change`` (files without one: 0), every factor it does not name
+    nominal. InputError for an unknown set or factor, a factor that is not a positive
+    number, or an ``order_change`` that is not an integer."""
     try:
         factors = factor_set(calibration.get("factor_set"))
     except ValueError as e:
@@ -94,7 +98,12 @@ def calibrated_box_model(calibration: dict):
            if isinstance(x, bool) or not (isinstance(x, (int, float)) and np.isfinite(x) and x > 0)]
     if bad:
         raise InputError(f"box parameter(s) {', '.join(bad)} must be positive numbers", key="parameters")
-    model = assemble(shinkansen_vehicle(parameters=factors.parameters))
+    order_change = calibration.get("order_change", 0)
+    lowest = 1 - min(min(o) for o in ORDERS.values())
+    if isinstance(order_change, bool) or not isinstance(order_change, int) or order_change < lowest:
+        raise InputError(f"'order_change' must be an integer >= {lowest} (every panel order >= 1), got "
+                         f"{order_change!r}", key="order_change")
+    model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
     return model, {n: float(params.get(n, 1.0)) for n in model.names}
 
 
@@ -222,7 +231,8 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     p = np.r_[p, np.ones(len(names) - p.size)]  # factors never freed: nominal
     return BoxCalibration(dict(zip(names, map(float, p))), rows, float(final["max_error_pct"]), pso, refinement,
                           [float(x) for x in check["reduced_vs_full_pct"]], ident,
-                          {q.name: [q.low, q.high] for q in search}, set_name)
+                          {q.name: [q.low, q.high] for q in search}, set_name,
+                          order_change if factors is not None else 0)
 
 
 def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, high, names, *, rounds: int,
@@ -267,7 +277,11 @@ def targets_from_identification(ident: ShakerIdentification, *, band: bool = Fal
 def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
                            seed: int = 0, refine: bool = True, shaker: ShakerSettings = ShakerSettings(),
                            progress=None, swarms: int = CAMPAIGN_SWARMS, done_pct: float = CAMPAIGN_DONE_PCT,
-                           refine_tol_pct: float = 1e-4) -> tuple[BoxCalibration, ShakerIdentification]:
+                           refine_tol_pct: float = 1e-4,
+                           order_change: int = 0) -> tuple[BoxCalibration, ShakerIdentification]:
+    """Identify a stationary excitation campaign's modes and calibrate the box model to them
+    (:func:`calibrate_box`); ``order_change``: added to every panel order of the model
+    (negative: a coarse, fast model, e.g. for a campaign synthesised on the same one)."""
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
@@ -281,4 +295,4 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
                          refine=refine, progress=progress, swarms=swarms, done_pct=done_pct,
-                         refine_tol_pct=refine_tol_pct), ident
+                         refine_tol_pct=refine_tol_pct, order_change=order_change), ident

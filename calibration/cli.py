@@ -519,9 +519,10 @@ def cmd_demo(args) -> int:
     if os.path.lexists(out) and not out.is_dir():
         raise InputError("exists and is not a folder; --out takes the folder to write the demo into", path=out,
                          key="--out")
-    # the demo replaces its own campaign there: refuse before any work if that is not one railcal wrote
-    check_campaign_output(out / "campaign", overwrite=True)
-    report = run_demo(Path(args.out), progress=_progress(args))
+    # the demo replaces its own campaigns there: refuse before any work if one is not railcal's
+    for name in ("campaign", "shaker"):
+        check_campaign_output(out / name, overwrite=True)
+    report = run_demo(Path(args.out), progress=_progress(args), full=args.full)
     print(f"demo finished: report {report}; wrote its results, figures and FMUs into {args.out}")
     return EXIT_OK
 
@@ -747,6 +748,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output", help="folder to write the demo's results into")
+    s.add_argument("--full", action="store_true",
+                   help="the published methods' sizes (10 journeys over 40 km, the seed's 1000 particles, the "
+                        "full-order box model; much longer); default: off, the quick demo")
     s.add_argument("--quiet", action="store_true", help="no progress on stderr")
     s.set_defaults(func=cmd_demo)
     return p
