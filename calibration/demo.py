@@ -144,9 +144,10 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     write_result(out / "crosscheck.json", xcheck, "crosscheck")
     say("11/11 writing the report")
     checks = _checks(truth, result, calibration, shaker, diagnosis, xcheck)
+    walls["end"] = time.perf_counter()
     text = (_report(truth, result, png.name, calibration, validation, demo) + _shaker_report(shaker, demo)
             + _diagnosis_report(diagnosis) + _fmu_report(fmus) + _crosscheck_report(xcheck)
-            + _checks_report(checks))
+            + _checks_report(checks) + _walls_report(walls, demo))
     report = write_atomic(out / "report.md", lambda f: f.write(text.encode()))
     steps.update()
     steps.close()
@@ -176,6 +177,15 @@ def _checks(truth: dict, result, calibration, shaker: dict, diagnosis: dict, xch
         out.append((f"{what} diagnosis answers none on effect-free data: {d['cause']}", d["cause"] == "none"))
     out.append((f"exudyn cross-check: {xcheck['verdict']}", xcheck["verdict"] == "pass"))
     return out
+
+
+def _walls_report(walls: dict, demo: DemoSettings) -> str:
+    """Each step's wall time [s] (``walls``: its start, in order, then ``end``)."""
+    names, starts = list(walls), list(walls.values())
+    rows = [f"| {n} | {b - a:.0f} |" for n, a, b in zip(names, starts, starts[1:])]
+    return "\n".join(["## Wall times", "", f"{'Full' if demo is FULL else 'Quick'} demo (`railcal demo"
+                      f"{' --full' if demo is FULL else ''}`), {starts[-1] - starts[0]:.0f} s in all:", "",
+                      "| step | wall [s] |", "|---|---|", *rows, "", ""])
 
 
 def _checks_report(checks: list[tuple[str, bool]]) -> str:

@@ -77,3 +77,9 @@ def test_calibration_file_refuses_a_bad_order_change(bad):
 
 def test_a_mode_without_damping_gets_a_dash():
     assert demo._damping(None) == "—" and demo._damping(0.0123) == "0.012"
+
+
+def test_wall_times_are_the_steps_differences():
+    text = demo._walls_report({"1/11 synthesising": 100.0, "2/11 identifying": 130.0, "end": 175.5}, demo.QUICK)
+    assert "| 1/11 synthesising | 30 |" in text and "| 2/11 identifying | 46 |" in text
+    assert "76 s in all" in text and "`railcal demo`" in text
