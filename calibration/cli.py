@@ -246,7 +246,8 @@ def cmd_modes(args) -> int:
         out = {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(), "modes": modes}
     if args.out:
         write_result(args.out, out, "modes")
-    print("; ".join(f"{m['label']} {m['frequency_hz']:.3f} Hz" for m in out["modes"]))
+    wrote = f"; wrote {args.out}" if args.out else ""
+    print("; ".join(f"{m['label']} {m['frequency_hz']:.3f} Hz" for m in out["modes"]) + wrote)
     return EXIT_OK
 
 
