@@ -13,7 +13,7 @@ import sys
 import traceback
 from pathlib import Path
 
-from .data.campaign import open_campaign
+from .data.campaign import open_campaign, read_input_file
 from .data.outputs import check_campaign_output, check_outputs, read_result, write_json_atomic, write_result
 from .data.errors import InputError
 from .models.parameters import CAR_PARAMETER_SPECS, ParameterError
@@ -93,8 +93,8 @@ def _truth_frequencies(campaign_dir) -> dict | None:
     if not path.is_file():
         return None
     try:
-        return {k: float(v) for k, v in json.loads(path.read_text())["frequencies_hz"].items()}
-    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        return {k: float(v) for k, v in json.loads(read_input_file(path))["frequencies_hz"].items()}
+    except (InputError, ValueError, KeyError, TypeError, AttributeError) as e:
         print(f"railcal: warning: {path} is not a readable truth file ({e}); plotted without it", file=sys.stderr)
         return None
 
