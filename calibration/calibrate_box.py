@@ -19,7 +19,7 @@ from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.shinkansen import GROUPED_RANGE, ORDERS
-from .models.box.fit import BoxFit, ModeTarget, polish_box, refine_box, sensor_operator
+from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, polish_box, refine_box, sensor_operator
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -134,7 +134,7 @@ def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.G
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
                   settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
                   sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
-                  min_carbody_share: float = 0.0, min_mac: float = 0.0, log_factors: bool = False,
+                  min_carbody_share: float = MIN_CARBODY_SHARE, min_mac: float = 0.0, log_factors: bool = False,
                   refine_rounds: int = 10, refine_tol_pct: float = 1e-4, polish_steps: int = 0, order_change: int = 0,
                   swarms: int = 1, done_pct: float | None = None) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);

@@ -369,12 +369,12 @@ def _unsound(fit) -> str:
     return "".join(f", {r['label']} unsound (MAC {r['mac']:.6f})" for r in bad)
 
 
-#: A typed target (an idealised floor pattern, no measured amplitude) pairs only with model
-#: modes that are at least half carbody by kinetic energy: on the seed's Figure 5 targets the
-#: swarm otherwise paired the lateral-vertical type with a bogie mode whose floor motion is
-#: 1 % of a carbody mode's but has the pattern's shape.
-TYPED_MIN_CARBODY_SHARE = 0.5
-#: ... and counts only when sound: MAC with the pattern >= this, its partner no other
+#: A typed target (an idealised floor pattern, no measured amplitude) pairs, like every
+#: target, only with model modes that are at least half carbody by kinetic energy (BoxFit's
+#: default): on the seed's Figure 5 targets the swarm otherwise paired the lateral-vertical
+#: type with a bogie mode whose floor motion is 1 % of a carbody mode's but has the pattern's
+#: shape.
+#: It counts only when sound: MAC with the pattern >= this, its partner no other
 #: target's (BoxFit.min_mac). Without it, the door-zone fit of typing D met every frequency
 #: with the second torsion paired at MAC 0.33 to a mode unlike a torsion. The swarm then
 #: moves in log factors: in the linear 0.25-4 box it collapsed onto the box's limits
@@ -423,7 +423,7 @@ def _calibrate_box_targets(args, settings, swarms: int):
     g = Geometry()
     typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
     return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
-                         factors=factors, progress=_progress(args), min_carbody_share=TYPED_MIN_CARBODY_SHARE,
+                         factors=factors, progress=_progress(args),
                          min_mac=TYPED_MIN_MAC, log_factors=True, refine_rounds=TYPED_REFINE_ROUNDS,
                          polish_steps=TYPED_POLISH_STEPS if args.refine else 0, swarms=swarms)
 

@@ -62,7 +62,7 @@ import numpy as np
 
 from calibration.calibrate import read_targets
 from calibration.calibrate_box import box_search, calibrate_box
-from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC
+from calibration.cli import TYPED_MIN_MAC
 from calibration.data.campaign import Sensor
 from calibration.models.box import FactorSet, assemble, shinkansen_vehicle
 from calibration.models.box.assembly import StiffnessParameter
@@ -164,7 +164,7 @@ def main() -> int:
     t0 = time.perf_counter()
     cal = calibrate_box(typed, SENSOR_GRID, search, factors=factors, seed=args.seed,
                         settings=PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5),
-                        min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.min_mac, log_factors=True,
+                        min_mac=args.min_mac, log_factors=True,
                         refine_rounds=args.rounds, polish_steps=args.polish,
                         progress=lambda m: print(" ", m, flush=True))
     ref, pol = cal.refinement, cal.refinement.get("polish")
@@ -185,7 +185,7 @@ def main() -> int:
               f"({row['error_pct']:+.2f} %), MAC {row['mac']:.2f}{'' if row['sound'] else ' UNSOUND'}")
     if args.describe or args.probe:  # the full model at the answer, once more
         model = assemble(shinkansen_vehicle(parameters=factors.parameters))
-        fit = BoxFit(model, sensor_operator(model, SENSOR_GRID), typed, min_carbody_share=TYPED_MIN_CARBODY_SHARE,
+        fit = BoxFit(model, sensor_operator(model, SENSOR_GRID), typed, 
                      min_mac=args.min_mac)
         fit.rebuild(p)
         if args.describe:

@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from check_figure5_credible import TARGETS  # noqa: E402
 
 from calibration.calibrate import read_targets  # noqa: E402
-from calibration.cli import TYPED_MIN_CARBODY_SHARE, TYPED_MIN_MAC  # noqa: E402
+from calibration.cli import TYPED_MIN_MAC  # noqa: E402
 from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402
@@ -78,7 +78,7 @@ def main() -> int:
     g = Geometry()
     fit = BoxFit(model, sensor_operator(model, SENSOR_GRID),
                  typed_targets({t: 10.0 for t in types}, SENSOR_GRID, g.length, g.width),
-                 min_carbody_share=TYPED_MIN_CARBODY_SHARE, min_mac=args.mac)
+                 min_mac=args.mac)
     lo, hi = (np.log([r[i] for _, r in CREDIBLE_FACTORS]) for i in (0, 1))
 
     def draw(n):

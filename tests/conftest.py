@@ -55,12 +55,17 @@ _BLAS_CAP = _cap_blas_threads_per_worker()
 
 #: fixtures that synthesise a campaign, build FMUs or diagnose one (seconds on one core of
 #: the 2-core development machine): a test using one is in the ``slow`` tier, which
-#: ``make check`` leaves out and ``make test`` runs
+#: ``make check`` leaves out and ``make test`` runs. A test that synthesises or diagnoses a
+#: campaign itself is marked ``slow`` where it is defined.
 SLOW_FIXTURES = {
     "synthetic_campaign": 32,  # a six-journey in-service campaign
     "car_fmus": 36,  # the car FMU compiled for FMI 2 and 3
     "shaker": 26,  # test_box_calibration.py: a 240 s shaker test, synthesised and identified
-    "diagnosed": 50,  # test_diagnosis_stationary.py: each case a diagnosed shaker campaign
+    "diagnosed": 125,  # test_diagnosis_stationary.py: each case a diagnosed shaker campaign
+    "box_fmus": 6,  # test_fmu_box.py: the box FMU for FMI 2 and 3
+    "over_the_track": 6,  # test_reference_box.py: exudyn, railcal and the FMU over a track
+    "equipment_campaign": 6,  # test_truth_excitation_effects.py: synthesised shaker campaigns
+    "softening_campaign": 4,
 }
 
 

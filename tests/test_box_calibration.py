@@ -140,10 +140,10 @@ def test_mode_type_templates_are_distinct_floor_patterns():
     assert np.all(off < 0.5)
 
 
-def test_a_target_pairs_only_with_carbody_modes_when_asked(model):
+def test_a_target_pairs_only_with_carbody_modes(model):
     """A bogie mode moves the floor faintly through the suspension; its floor pattern can
-    match a target's shape perfectly. With ``min_carbody_share`` the pairing skips modes
-    whose kinetic energy is mostly outside the carbody."""
+    match a target's shape perfectly. By default (``min_carbody_share`` = 0.5) the pairing
+    skips modes whose kinetic energy is mostly outside the carbody; 0 pairs blind."""
     S = sensor_operator(model, SENSOR_GRID)
     f, X = full_modes(model, np.ones(len(model.names)), 30)
     share = np.einsum("dm,dm->m", X, carbody_mass(model) @ X)
@@ -152,7 +152,7 @@ def test_a_target_pairs_only_with_carbody_modes_when_asked(model):
     assert share[bogie] < 0.1
     target = (ModeTarget("bogie_pattern", float(f[bogie]), S @ X[:, bogie]),)
     p = np.ones(len(model.names))
-    blind, fit = BoxFit(model, S, target), BoxFit(model, S, target, min_carbody_share=0.5)
+    blind, fit = BoxFit(model, S, target, min_carbody_share=0.0), BoxFit(model, S, target)
     blind.rebuild(p)
     fit.rebuild(p)
     assert blind.full_check(p)["index"][0] == bogie and blind.full_check(p)["mac"][0] == pytest.approx(1.0)
@@ -239,7 +239,10 @@ def test_the_full_model_polish_lowers_the_error_and_keeps_the_mac_floor(model):
     The targets are modes at least 1 % from their neighbours: a double or near-double
     eigenvalue (this model has one at 10.27 Hz that no factor moves) has no shape of its own,
     the eigensolver returns a round-off-dependent vector of its eigenspace, and so would the
-    target and its MAC be. Where the step count comes from: K = K0 + sum p_i K_i with every
+    target and its MAC be. The 10.27 Hz pair is the bogies': when the 9.97 Hz target's
+    partner passes close to it, each has a MAC within 1e-3 of the other, and only the
+    carbody-share filter (BoxFit's default) keeps round-off from choosing (without it this
+    failed on two BLAS threads and passed on one). Where the step count comes from: K = K0 + sum p_i K_i with every
     K_i positive semi-definite, so d ln f / d ln p_i >= 0 and sums to at most 1/2; a step of
     +-trust in log factors moves a frequency by at most trust / 2, and with the region at 2 %
     growing by half per kept step, halving a start error of about 5 % takes at least two

@@ -133,6 +133,7 @@ def judge(code, err: str, base_err: str, root: Path) -> str:
     return "refused, named"
 
 
+@pytest.mark.slow
 def test_mutated_campaigns_are_accepted_or_refused_with_exit_2(bases, tmp_path, capsys):
     paths, calibration = bases
     base_csv, base_parquet = paths["csv"], paths["parquet"]

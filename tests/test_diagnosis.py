@@ -248,6 +248,8 @@ def _campaign(root, seed: int, effect: EffectChoice | None, journeys: int = 3):
     return root
 
 
+@pytest.mark.slow
+@pytest.mark.spread
 @pytest.mark.parametrize("name,end", CASES, ids=[f"{n}-{'low' if e == 0 else 'high'}" for n, e in CASES])
 def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
     spec = EFFECTS[name]
@@ -270,6 +272,7 @@ def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
         assert p["wavelength_m"] == pytest.approx(truth["wavelength_m"], rel=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [75, 76])
 def test_effect_free_campaign_is_diagnosed_none(tmp_path, seed):
     result = diagnose(open_campaign(_campaign(tmp_path / "c", seed, None)))
@@ -277,6 +280,7 @@ def test_effect_free_campaign_is_diagnosed_none(tmp_path, seed):
     assert result["extension"] is None and result["gain"] is None
 
 
+@pytest.mark.slow
 def test_effect_outside_the_catalogue_is_unexplained_with_its_evidence(tmp_path):
     spec = UNCATALOGUED["bogie_equipment"]
     result = diagnose(open_campaign(_campaign(tmp_path / "c", 77, EffectChoice(spec, 400.0))))
@@ -286,6 +290,7 @@ def test_effect_outside_the_catalogue_is_unexplained_with_its_evidence(tmp_path)
     assert any(abs(f / truth - 1) < 0.1 for f in peaks), peaks
 
 
+@pytest.mark.slow
 def test_an_extension_that_gains_without_explaining_the_systematic_residual_is_not_named(tmp_path):
     """Bench seed 1572 (found the flaw): 555 kg on bogie 1 at 27 Hz. The sensor-offset fit
     (a gyro gain) cuts the pitch gyro's held-out error by a third, enough by gain alone, yet
@@ -302,6 +307,7 @@ def test_an_extension_that_gains_without_explaining_the_systematic_residual_is_n
     assert any(line.startswith("sensor_offset gains") for line in result["evidence"]["summary"])
 
 
+@pytest.mark.slow
 def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_path, capsys):
     root = _campaign(tmp_path / "c", 78, EffectChoice(EFFECTS["cog_offset"], 1.2))
     out = tmp_path / "diag.json"

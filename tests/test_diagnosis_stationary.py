@@ -217,15 +217,14 @@ def test_railcal_diagnose_takes_stationary_campaigns_and_exits_2_on_bad_input(tm
 
 
 # ------------------------------------------------------------------------ campaigns
-#: each effect at both ends of its range. The earlier series of this same table, 5201-5206
-#: and 5301-5306, stay cases: too slow for the suite, they run with this one in
+#: a named cause, `none` and an effect outside the catalogue: the three answers the
+#: diagnosis gives. The rest of this series (5311 underfloor equipment at mass ratio 0.01,
+#: 5313 and 5314 a panel softened by 3 and by 10) and the earlier series 5201-5206 and
+#: 5301-5306 are too slow for the suite (about two minutes each); they run in
 #: scripts/bench_diagnose_stationary_seeds.py, which reports the rate with its interval
 #: (5203, the roof softened by 3, and 5303, the rear floor softened by 3, once failed)
 CASES = {
-    "equipment_low": (5311, "underfloor_equipment", 0.01),
     "equipment_high": (5312, "underfloor_equipment", 0.05),
-    "softening_low": (5313, "local_panel_softening", 3.0),
-    "softening_high": (5314, "local_panel_softening", 10.0),
     "effect_free": (5315, None, None),
     "outside_catalogue": (5316, "sensor_bracket", 21.0),  # no extension for it: `unexplained`
 }

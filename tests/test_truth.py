@@ -61,6 +61,7 @@ def test_synthetic_campaign_is_a_valid_campaign_with_its_truth_beside_it(synthet
     assert campaign.tracks()[0].band == "D1"
 
 
+@pytest.mark.slow
 def test_synth_is_reproducible_from_its_seed(tmp_path):
     from calibration.truth.in_service import InServiceSettings, synth_in_service
 

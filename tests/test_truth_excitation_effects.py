@@ -312,6 +312,7 @@ def test_a_bracketed_sensor_reads_the_floor_through_the_base_excited_oscillator(
         SensorBracket("acc_x", 17.0, 0.04)
 
 
+@pytest.mark.slow
 def test_bracket_campaign_changes_one_channel_by_its_transmissibility(tmp_path, model):
     """Outside the catalogue (the CLI does not offer it): the truth file names the sensor,
     away from the exciter; that channel's H1 is the truth's accelerance times T, and every
