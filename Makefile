@@ -23,11 +23,12 @@ demo: $(STAMP)
 # TEST_JOBS workers (pytest-xdist). No BLAS thread count is pinned here: results must not
 # depend on it. tests/conftest.py caps each worker at cores / workers BLAS threads, for speed
 # only (no oversubscription); RAILCAL_TEST_BLAS_CAP=off runs without the cap.
-# Each test file stays on one worker except the tests marked `spread` (tests/conftest.py).
+# Each test file stays on one worker except the tests marked `spread`; the dearest groups go
+# first (tests/conftest.py orders them; --no-loadscope-reorder keeps that order).
 #   make test    the whole suite (what .ci/run runs)
 #   make check   the quick tier for development: the tests not marked `slow`
 TEST_JOBS ?= 2
-PYTEST := $(PY) -m pytest -q -n $(TEST_JOBS) --dist loadgroup
+PYTEST := $(PY) -m pytest -q -n $(TEST_JOBS) --dist loadgroup --no-loadscope-reorder
 NO_TESTS := if [ $$rc -eq 5 ]; then echo "pytest collected no tests" >&2; exit 1; fi; exit $$rc
 
 test: $(STAMP)

@@ -488,10 +488,10 @@ def cmd_diagnose(args) -> int:
         result["plots"] = [str(p) for p in plot_diagnosis(result, out_path.with_suffix(""))]
     result.pop("_plot")
     write_result(out_path, result, "diagnosis")
-    print(f"cause: {result['cause']}")
-    for line in result["evidence"]["summary"]:
-        print(f"  {line}")
-    print(f"wrote {_names(out_path, *result['plots'])}")
+    if not args.quiet:  # the evidence in full; the summary line stays one line
+        for line in result["evidence"]["summary"]:
+            print(f"  {line}", file=sys.stderr)
+    print(f"cause: {result['cause']}; wrote {_names(out_path, *result['plots'])}")
     return EXIT_OK
 
 

@@ -362,7 +362,7 @@ def _shaker_report(s: dict, demo: DemoSettings) -> str:
                  "`railcal demo --full` runs the full-order model.")
     else:
         model = f"The box model is the full-order {s['n_dof']}-DOF discretisation throughout."
-    fit = {r["label"]: r for r in cal.fit}
+    fit = {part: r for r in cal.fit for part in r["label"].split("+")}  # a close pair's members share one target
     pso = cal.pso
     return "\n".join([
         "## Stationary excitation test of the box carbody (RTRI seed)",

@@ -61,9 +61,10 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
     rows = calibration.get("identified_modes") or [{"label": m.label, "damping_ratio": m.damping_ratio}
                                                   for m in ident.modes]
     identified = {r["label"]: r["damping_ratio"] for r in rows}
-    for row in fit:
-        if row.get("model_mode") and identified.get(row["label"]) is not None:
-            zeta[int(row["model_mode"]) - 1] = identified[row["label"]]
+    for row in fit:  # a target of merged modes ("mode_5+mode_6", a close pair's span): their mean
+        known = [identified[part] for part in row["label"].split("+") if identified.get(part) is not None]
+        if row.get("model_mode") and known:
+            zeta[int(row["model_mode"]) - 1] = float(np.mean(known))
     default = float(np.median([z for z in identified.values() if z is not None]))
     zeta = np.where(np.isfinite(zeta), zeta, np.where(np.array(modal0.kind) == "elastic", default,
                                                       modal0.damping_ratio))

@@ -9,6 +9,10 @@ effect-free data, the held-out error reduction where the cause is right, and the
 time per diagnosis; writes every case to ``--out``.
 
     python scripts/bench_diagnose.py [--seeds 10] [--journeys 4] [--length-km 8] [--jobs 2]
+
+With ``--table``: instead, the campaign table of ``tests/test_diagnosis.py`` (each effect
+at both ends of its range, seeds 61-72, 3 journeys x 8 km, 4 for track flexibility), of
+which the suite runs the low ends only.
 """
 from __future__ import annotations
 
@@ -60,6 +64,19 @@ def run_case(case: dict) -> dict:
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
 
+def _table(folder: str) -> list[dict]:
+    """The hidden-effect cases of tests/test_diagnosis.py, both ends of each range."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "tests" / "test_diagnosis.py"
+    spec = importlib.util.spec_from_file_location("test_diagnosis_table", path)
+    table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(table)
+    return [{"effect": name, "magnitude": float(EFFECTS[name].magnitude_range[end]), "seed": table.SEEDS[(name, end)],
+             "journeys": 4 if name == "track_flexibility" else 3, "length_km": 8.0, "folder": folder}
+            for name, end in table.CASES]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
@@ -68,11 +85,14 @@ def main(argv=None) -> int:
     ap.add_argument("--length-km", type=float, default=8.0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="bench_diagnose.json")
+    ap.add_argument("--table", action="store_true", help="the test file's campaign table instead")
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.first_seed)
     folder = tempfile.mkdtemp(prefix="railcal_bench_diagnose_")
     cases, seed = [], args.first_seed
-    for name in IN_SERVICE + ["none", OUTSIDE]:
+    if args.table:
+        cases = _table(folder)
+    for name in [] if args.table else IN_SERVICE + ["none", OUTSIDE]:
         spec = None if name == "none" else effect_spec(name)
         for _ in range(args.seeds):
             mag = None if spec is None else float(rng.uniform(*spec.magnitude_range))
@@ -92,11 +112,12 @@ def main(argv=None) -> int:
     shutil.rmtree(folder, ignore_errors=True)
     Path(args.out).write_text(json.dumps(results, indent=1))
 
-    truths = IN_SERVICE + ["none", OUTSIDE]
+    truths = [t for t in IN_SERVICE + ["none", OUTSIDE] if any(r["effect"] == t for r in results)]
     answers = IN_SERVICE + ["none", "unexplained"]
     expected = {**{n: n for n in IN_SERVICE}, "none": "none", OUTSIDE: "unexplained"}
-    print(f"\nconfusion matrix ({args.seeds} campaigns per row, {args.journeys} journeys x {args.length_km:g} km, "
-          f"carbody sensors; rows: truth, columns: diagnosis)")
+    sizes = ("the test table, 3-4 journeys x 8 km" if args.table
+             else f"{args.seeds} campaigns per row, {args.journeys} journeys x {args.length_km:g} km")
+    print(f"\nconfusion matrix ({sizes}, carbody sensors; rows: truth, columns: diagnosis)")
     print(" " * 22 + "".join(f"{a[:9]:>10s}" for a in answers))
     for t in truths:
         row = [sum(1 for r in results if r["effect"] == t and r["diagnosed"] == a) for a in answers]

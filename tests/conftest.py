@@ -69,17 +69,37 @@ SLOW_FIXTURES = {
 }
 
 
+def _cost(item) -> float:
+    """A rough cost of a test [s], for the order of the work: a ``slow(seconds=...)`` mark,
+    else the dearest :data:`SLOW_FIXTURES` fixture it uses, else 20 s for a test marked
+    ``slow`` and 0.2 s for the rest."""
+    mark = item.get_closest_marker("slow")
+    if mark is not None and "seconds" in mark.kwargs:
+        return float(mark.kwargs["seconds"])
+    fixtures = SLOW_FIXTURES.keys() & set(getattr(item, "fixturenames", ()))
+    if fixtures:
+        return float(max(SLOW_FIXTURES[f] for f in fixtures))
+    return 20.0 if mark is not None else 0.2
+
+
 def pytest_collection_modifyitems(config, items):
     """Groups for pytest-xdist's ``--dist loadgroup`` (``make test``): every test file runs on
     one worker, so its module and session fixtures are built once, except tests marked
     ``spread`` (a diagnosed campaign of a minute or two each), which are a group each so
     that the workers share them. Tests using a :data:`SLOW_FIXTURES` fixture are marked
-    ``slow``."""
+    ``slow``. The groups are ordered dearest first (``make test`` keeps this order with
+    ``--no-loadscope-reorder``): the workers hand out groups in order, and a two-minute test
+    left to the end ran alone while the other worker idled."""
+    group_of, cost = {}, {}
     for item in items:
         if SLOW_FIXTURES.keys() & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
         group = item.nodeid if item.get_closest_marker("spread") else item.nodeid.split("::")[0]
         item.add_marker(pytest.mark.xdist_group(group))
+        group_of[item.nodeid] = group
+        cost[group] = cost.get(group, 0.0) + _cost(item)
+    order = {item.nodeid: k for k, item in enumerate(items)}
+    items.sort(key=lambda item: (-cost[group_of[item.nodeid]], order[item.nodeid]))
 
 
 @pytest.fixture

@@ -240,6 +240,9 @@ def test_effect_magnitudes_outside_their_range_are_refused():
 IN_SERVICE = sorted(n for n, s in EFFECTS.items() if "in_service" in s.kinds)
 CASES = [(name, end) for name in IN_SERVICE for end in (0, 1)]
 SEEDS = {case: 61 + i for i, case in enumerate(CASES)}
+#: the suite runs each effect at the low end of its range (the harder to find); the whole
+#: table, high ends too, runs in ``scripts/bench_diagnose.py --table``
+SUITE_CASES = [case for case in CASES if case[1] == 0]
 
 
 def _campaign(root, seed: int, effect: EffectChoice | None, journeys: int = 3):
@@ -250,7 +253,7 @@ def _campaign(root, seed: int, effect: EffectChoice | None, journeys: int = 3):
 
 @pytest.mark.slow
 @pytest.mark.spread
-@pytest.mark.parametrize("name,end", CASES, ids=[f"{n}-{'low' if e == 0 else 'high'}" for n, e in CASES])
+@pytest.mark.parametrize("name,end", SUITE_CASES, ids=[f"{n}-{'low' if e == 0 else 'high'}" for n, e in SUITE_CASES])
 def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
     spec = EFFECTS[name]
     magnitude = spec.magnitude_range[end]
@@ -316,7 +319,8 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
     assert {"cause", "evidence", "extension", "gain"} <= set(result)
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])
-    assert "cause: cog_offset" in capsys.readouterr().out
+    printed = capsys.readouterr().out  # one summary line: the cause and the files written
+    assert printed.count("\n") == 1 and printed.startswith("cause: cog_offset;") and "diag.json" in printed
 
 
 def test_diagnose_refuses_a_missing_campaign_without_writing(tmp_path, capsys):

@@ -48,7 +48,7 @@ def test_the_readme_has_a_tour_and_stays_a_guide():
     assert "in progress" not in text
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=100)
 @pytest.mark.spread
 @pytest.mark.parametrize("section", list(SECTIONS))
 def test_the_tour_runs_as_written(section, tmp_path):
