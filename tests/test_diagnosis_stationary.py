@@ -1,7 +1,7 @@
 """Diagnosis of stationary excitation tests: the extensions are the physics they claim to
-be, and hidden effects are named on campaigns from seeds never used while developing; an
-effect outside the catalogue (a sensor on a resilient bracket) is `unexplained`, never
-given a wrong name.
+be, and an effect outside the catalogue (a sensor on a resilient bracket) is
+`unexplained`, never given a wrong name. Whether hidden catalogue effects are named is
+measured by scripts/bench_diagnose_stationary_seeds.py (two to three minutes a campaign).
 
 A coarse box model (every panel order - 4, the ``coarse_box_model`` fixture) keeps the
 file fast; the physics checked is the same at full order."""
@@ -217,57 +217,43 @@ def test_railcal_diagnose_takes_stationary_campaigns_and_exits_2_on_bad_input(tm
 
 
 # ------------------------------------------------------------------------ campaigns
-#: a named cause and an effect outside the catalogue (`unexplained`, never a wrong name).
-#: The rest of this series (5311 underfloor equipment at mass ratio 0.01, 5313 and 5314 a
-#: panel softened by 3 and by 10, 5315 effect-free) and the earlier series 5201-5206 and
-#: 5301-5306 are too slow for the suite (about two minutes each); they run in
-#: scripts/bench_diagnose_stationary_seeds.py, which reports the rate with its interval
-#: (5203, the roof softened by 3, and 5303, the rear floor softened by 3, once failed)
-CASES = {
-    "equipment_high": (5312, "underfloor_equipment", 0.05),
-    "outside_catalogue": (5316, "sensor_bracket", 21.0),  # no extension for it: `unexplained`
-}
+#: An effect outside the catalogue: the diagnosis must answer `unexplained`, never a wrong
+#: name. This is case 6 of series 5311; the rest of it (5311 and 5312 underfloor equipment
+#: at mass ratios 0.01 and 0.05, 5313 and 5314 a panel softened by 3 and by 10, 5315
+#: effect-free) and the earlier series 5201-5206 and 5301-5306 are too slow for the suite
+#: (two to three minutes each); they run in scripts/bench_diagnose_stationary_seeds.py,
+#: which reports the rate with its interval (5203, the roof softened by 3, and 5303, the
+#: rear floor softened by 3, once failed).
+BRACKET = (5316, "sensor_bracket", 21.0)
 
 
-@pytest.fixture(scope="module", params=list(CASES))
-def diagnosed(request, tmp_path_factory, model):
-    seed, name, magnitude = CASES[request.param]
-    root = tmp_path_factory.mktemp("stationary") / request.param
-    effect = None if name is None else EffectChoice(effect_spec(name), magnitude)
-    truth = synth_excitation(root, seed=seed, settings=SETTINGS, effect=effect, model=model)
-    return request.param, truth, diagnose_stationary(open_campaign(root), model=model, settings=FAST)
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory, model):
+    seed, name, magnitude = BRACKET
+    root = tmp_path_factory.mktemp("stationary") / "outside_catalogue"
+    truth = synth_excitation(root, seed=seed, settings=SETTINGS, effect=EffectChoice(effect_spec(name), magnitude),
+                             model=model)
+    return truth, diagnose_stationary(open_campaign(root), model=model, settings=FAST)
 
 
-@pytest.mark.spread
-def test_the_hidden_cause_is_named_with_its_parameters_and_gain_on_held_out_runs(diagnosed, tmp_path):
-    case, truth, result = diagnosed
-    hidden = (truth["effect"] or {}).get("name", "none")
+def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_at_it(diagnosed, tmp_path):
+    """A sensor on a resilient bracket (no extension for it): `unexplained`, with every
+    hypothesis's penalised gain under the bar, the evidence naming the one channel, and
+    the other channels explained once it is left out; the plots and the JSON written."""
+    truth, result = diagnosed
+    assert truth["effect"]["name"] in UNCATALOGUED
     summary = result["evidence"]["summary"]
-    assert result["cause"] == ("unexplained" if hidden in UNCATALOGUED else hidden), summary
-    assert result["format"] == "railcal-diagnosis/1" and summary
+    assert result["cause"] == "unexplained", summary
+    assert result["format"] == "railcal-diagnosis/1"
     assert result["split"]["training_runs"] == ["run_001"] and result["split"]["heldout_runs"] == ["run_002"]
-    if hidden in UNCATALOGUED:  # never a wrong name; the evidence points at the bracketed sensor
-        assert result["extension"] is None and result["gain"] is None
-        assert all(h["penalised_gain"] < FAST.min_gain for h in result["hypotheses"])
-        sensor = truth["effect"]["sensor"]
-        assert any(f"confined to one channel: {sensor}" in line for line in summary), summary
-        rest = result["evidence"]["without_channel"]  # calibrated without it, the other channels are explained
-        assert rest["channel"] == sensor and rest["channels"] == len(SENSOR_GRID) - 1
-        assert rest["heldout_error_mean"] <= FAST.noise_alarm < result["evidence"]["heldout_error_mean"]
-    else:
-        assert result["gain"]["reduction"] >= 0.3
-        found, eff = result["extension"]["parameters"], truth["effect"]
-        if hidden == "underfloor_equipment":
-            assert found["mounting_frequency_hz"] == pytest.approx(eff["mounting_frequency_hz"], rel=0.05)
-            assert np.hypot(found["mount_x_m"] - eff["position_m"][0], found["mount_y_m"] - eff["position_m"][1]) < 1.5
-            assert found["equipment_mass_kg"] == pytest.approx(eff["equipment_mass_kg"], rel=0.3)
-        else:
-            assert found["panel"] == eff["panel"]
-            if eff["panel"] != "roof":  # the roof's divisor trades against its own factors
-                assert found["rigidity_divisor"] == pytest.approx(eff["magnitude"], rel=0.25)
-    if case == "equipment_high":  # the plots and the JSON the command writes
-        paths = plot_stationary_diagnosis(result, tmp_path / "diag")
-        assert [p.name for p in paths] == ["diag_frf.png", "diag_mac.png"] and all(p.stat().st_size for p in paths)
-        public = {k: v for k, v in result.items() if k != "_plot"}
-        assert json.loads(json.dumps(public))["cause"] == hidden
-
+    assert result["extension"] is None and result["gain"] is None
+    assert all(h["penalised_gain"] < FAST.min_gain for h in result["hypotheses"])
+    sensor = truth["effect"]["sensor"]
+    assert any(f"confined to one channel: {sensor}" in line for line in summary), summary
+    rest = result["evidence"]["without_channel"]  # calibrated without it, the other channels are explained
+    assert rest["channel"] == sensor and rest["channels"] == len(SENSOR_GRID) - 1
+    assert rest["heldout_error_mean"] <= FAST.noise_alarm < result["evidence"]["heldout_error_mean"]
+    paths = plot_stationary_diagnosis(result, tmp_path / "diag")
+    assert [p.name for p in paths] == ["diag_frf.png", "diag_mac.png"] and all(p.stat().st_size for p in paths)
+    public = {k: v for k, v in result.items() if k != "_plot"}
+    assert json.loads(json.dumps(public))["cause"] == "unexplained"
