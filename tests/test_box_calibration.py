@@ -3,6 +3,7 @@ the data, the swarm and the refinement bring the model to them, bad requests are
 
 A coarse box model (every panel order - 4) keeps the file fast."""
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from threadpoolctl import threadpool_limits
 from calibration.calibrate_box import box_search, calibrate_box, targets_from_identification
 from calibration.cli import main
 from calibration.data.campaign import open_campaign
-from calibration.identification.excitation import identify_excitation
+from calibration.identification.excitation import ShakerMode, identify_excitation
 from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass,
                                         mac_matrix, polish_box, select_targets, sensor_operator)
 from calibration.models.box.reduced import full_modes
@@ -112,6 +113,25 @@ def test_swarm_and_refinement_bring_the_model_to_the_identified_modes(shaker, mo
     assert result.max_error_pct <= 0.05  # after the refinement, judged on the full model
     assert min(r["mac"] for r in result.fit) >= 0.9
     assert result.identifiability["rank"] <= len(ident.modes)
+
+
+def test_identified_modes_inside_one_half_power_band_are_one_target_of_their_span():
+    """Two identified modes 0.5 % apart with 2 % damping (each inside the other's band) and
+    a third 10 % away: two targets, the pair's at its mean frequency, labelled by both, its
+    shape in the span of theirs, its band reaching both members' bands; without bands,
+    every identified mode is its own target."""
+    rng = np.random.default_rng(0)
+    a, b, c = (rng.normal(size=8) for _ in range(3))
+    modes = (ShakerMode("mode_1", 10.00, 0.02, a, 5, None), ShakerMode("mode_2", 10.05, 0.02, b, 5, None),
+             ShakerMode("mode_3", 11.00, 0.02, c, 5, None))
+    ident = SimpleNamespace(modes=modes)
+    pair, alone = targets_from_identification(ident, band=True)
+    assert pair.label == "mode_1+mode_2" and pair.frequency_hz == pytest.approx(10.025)
+    assert (1 - pair.band) * pair.frequency_hz <= 10.0 * 0.98 and (1 + pair.band) * pair.frequency_hz >= 10.05 * 1.02
+    Q = np.linalg.qr(np.column_stack([a, b]))[0]
+    assert np.linalg.norm(pair.shape - Q @ (Q.T @ pair.shape)) < 1e-12 * np.linalg.norm(pair.shape)
+    assert alone.label == "mode_3" and alone.band == 0.02 and np.array_equal(alone.shape, c)
+    assert [t.label for t in targets_from_identification(ident)] == ["mode_1", "mode_2", "mode_3"]
 
 
 def test_a_mode_identified_at_a_close_pair_pairs_with_the_span_of_the_pair():
