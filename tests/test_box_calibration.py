@@ -95,8 +95,9 @@ def test_swarm_and_refinement_bring_the_model_to_the_identified_modes(shaker, mo
     each a mixture of the pair (both shapes in its span, MAC 0.99): their 0.5 % split is the
     one-exciter test's error, not the truth's. As two targets no model met both (0.21 % left
     after the refinement); the targets make them one, the span of the pair, at their mean
-    frequency, and every other mode a target of its own with its band. Expected before
-    running: within 0.05 % of every target after the refinement, every MAC >= 0.9."""
+    frequency (their shapes are alike, MAC 0.68), and every other mode a target of its own
+    with its band. Expected before running: within 0.05 % of every target after the
+    refinement, every MAC >= 0.9."""
     root, truth, _, ident = shaker
     campaign = open_campaign(root)
     sensors = tuple(campaign.meta.sensor(n) for n in ident.sensors)
@@ -115,23 +116,34 @@ def test_swarm_and_refinement_bring_the_model_to_the_identified_modes(shaker, mo
     assert result.identifiability["rank"] <= len(ident.modes)
 
 
-def test_identified_modes_inside_one_half_power_band_are_one_target_of_their_span():
+def test_identified_modes_inside_one_half_power_band_with_alike_shapes_are_one_target_of_their_span():
     """Two identified modes 0.5 % apart with 2 % damping (each inside the other's band) and
-    a third 10 % away: two targets, the pair's at its mean frequency, labelled by both, its
-    shape in the span of theirs, its band reaching both members' bands; without bands,
-    every identified mode is its own target."""
+    alike shapes (MAC 0.9), and a third 10 % away: two targets, the pair's at its mean
+    frequency, labelled by both, its shape in the span of theirs, its band reaching both
+    members' bands. With unlike shapes (MAC 0.1) the two are two modes, each its own
+    target, as they are without bands."""
     rng = np.random.default_rng(0)
-    a, b, c = (rng.normal(size=8) for _ in range(3))
-    modes = (ShakerMode("mode_1", 10.00, 0.02, a, 5, None), ShakerMode("mode_2", 10.05, 0.02, b, 5, None),
-             ShakerMode("mode_3", 11.00, 0.02, c, 5, None))
-    ident = SimpleNamespace(modes=modes)
-    pair, alone = targets_from_identification(ident, band=True)
+    a, n, c = (rng.normal(size=8) for _ in range(3))
+    n -= (n @ a) / (a @ a) * a  # orthogonal to a
+    a, n = a / np.linalg.norm(a), n / np.linalg.norm(n)
+
+    def ident(mac):
+        b = np.sqrt(mac) * a + np.sqrt(1 - mac) * n  # MAC(a, b) = mac
+        return SimpleNamespace(modes=(ShakerMode("mode_1", 10.00, 0.02, a, 5, None),
+                                      ShakerMode("mode_2", 10.05, 0.02, b, 5, None),
+                                      ShakerMode("mode_3", 11.00, 0.02, c, 5, None))), b
+
+    alike, b = ident(0.9)
+    pair, alone = targets_from_identification(alike, band=True)
     assert pair.label == "mode_1+mode_2" and pair.frequency_hz == pytest.approx(10.025)
     assert (1 - pair.band) * pair.frequency_hz <= 10.0 * 0.98 and (1 + pair.band) * pair.frequency_hz >= 10.05 * 1.02
     Q = np.linalg.qr(np.column_stack([a, b]))[0]
     assert np.linalg.norm(pair.shape - Q @ (Q.T @ pair.shape)) < 1e-12 * np.linalg.norm(pair.shape)
     assert alone.label == "mode_3" and alone.band == 0.02 and np.array_equal(alone.shape, c)
-    assert [t.label for t in targets_from_identification(ident)] == ["mode_1", "mode_2", "mode_3"]
+    assert [t.label for t in targets_from_identification(alike)] == ["mode_1", "mode_2", "mode_3"]
+    unlike, _ = ident(0.1)
+    assert [(t.label, t.band) for t in targets_from_identification(unlike, band=True)] == [
+        ("mode_1", 0.02), ("mode_2", 0.02), ("mode_3", 0.02)]
 
 
 def test_a_mode_identified_at_a_close_pair_pairs_with_the_span_of_the_pair():
