@@ -19,7 +19,8 @@ from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.shinkansen import GROUPED_RANGE, ORDERS
-from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, polish_box, refine_box, sensor_operator
+from .models.box.fit import (MIN_CARBODY_SHARE, BoxFit, ModeTarget, mac_matrix, polish_box, refine_box,
+                             sensor_operator)
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -316,8 +317,7 @@ def _overlap(a, b) -> bool:
     """Two identified modes, one inside the other's half-power band, with alike shapes."""
     gap = abs(a.frequency_hz - b.frequency_hz)
     inside = gap < max((a.damping_ratio or 0.0) * a.frequency_hz, (b.damping_ratio or 0.0) * b.frequency_hz)
-    alike = abs(np.vdot(a.shape, b.shape)) ** 2 / (np.vdot(a.shape, a.shape).real * np.vdot(b.shape, b.shape).real)
-    return bool(inside and alike >= SPAN_MIN_MAC)
+    return bool(inside and mac_matrix(a.shape[:, None], b.shape[:, None])[0, 0] >= SPAN_MIN_MAC)
 
 
 def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
