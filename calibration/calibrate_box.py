@@ -278,9 +278,9 @@ def targets_from_identification(ident: ShakerIdentification, *, band: bool = Fal
     does not separate modes that overlap so, and what it reports as two is two mixtures of
     the same pair, split by its estimation error (a close pair 0.1 % apart came out as two
     modes 0.5 % apart, each with both shapes in its span, and no model met both: 0.21 %
-    left). Unlike shapes in one band are two modes, resolved by their shapes. The target is the span of the group: its mean
-    frequency, the shape that best represents the group's shapes (their first singular
-    vector) and a band reaching every member's band."""
+    left). Unlike shapes in one band are two modes, resolved by their shapes. The target is
+    the span of the group: its mean frequency, the shape that best represents the group's
+    shapes (their first singular vector) and a band reaching every member's band."""
     modes = ident.modes
     if not band:
         return tuple(ModeTarget(m.label, m.frequency_hz, m.shape) for m in modes)

@@ -182,9 +182,9 @@ class BoxFit:
         only if at least this share of its kinetic energy is in the carbody (panels and the
         masses on them); a bogie mode seen faintly through the suspension has the floor
         pattern of its carbody reaction, which MAC, blind to amplitude, can mistake for an
-        elastic mode (0: every mode is eligible). ``min_mac``: a pairing is sound only if its MAC reaches this and no
-        other target with a larger MAC has the same partner; an unsound one is penalised in
-        RTRI eq. 3 (:meth:`errors_pct`)."""
+        elastic mode (0: every mode is eligible). ``min_mac``: a pairing is sound only if
+        its MAC reaches this and no other target with a larger MAC has the same partner; an
+        unsound one is penalised in RTRI eq. 3 (:meth:`errors_pct`)."""
         self.model = model
         self.sensors = np.asarray(sensors, float)
         self.targets = tuple(targets)
