@@ -14,13 +14,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .data.campaign import Campaign
+from .data.campaign import Campaign, Sensor
 from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
+from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
-from .models.box.shinkansen import GROUPED_RANGE, ORDERS
-from .models.box.fit import (MIN_CARBODY_SHARE, BoxFit, ModeTarget, mac_matrix, polish_box, refine_box,
-                             sensor_operator)
+from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, mac_matrix, sensor_operator
+from .models.box.rig import point_record
+from .models.box.shinkansen import GROUPED_RANGE
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -43,6 +44,8 @@ class BoxCalibration:
     search: dict = field(default_factory=dict)
     factor_set: str = "grouped"
     order_change: int = 0  # added to every panel order of the model calibrated (negative: coarse)
+    sensors: tuple[Sensor, ...] = ()  # the points the target shapes are given at
+    exciter: Sensor | None = None  # where the force acted (the FMU's force input)
 
     def to_json(self, ident: ShakerIdentification | None = None) -> dict:
         """The calibration file; with the identification it was fitted to, its modes too
@@ -54,6 +57,10 @@ class BoxCalibration:
                "identifiability": self.identifiability, "search": self.search}
         if self.order_change:  # a coarse model: whoever rebuilds it from the file must use the same orders
             out["order_change"] = self.order_change
+        if self.sensors:
+            out["sensors"] = [point_record(s) for s in self.sensors]
+        if self.exciter is not None:
+            out["exciter"] = point_record(self.exciter)
         if ident is not None:
             out["identified_modes"] = ident.to_json()["modes"]
         return out
@@ -76,36 +83,6 @@ def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tup
         lo, hi, nom = (pr.low, pr.high, pr.nominal) if pr else (*ranges.get(n, DEFAULT_RANGE), 1.0)
         out.append(SearchParameter(n, nom, 0.3 * nom, lo, hi, 0.01 * nom))
     return tuple(out)
-
-
-def calibrated_box_model(calibration: dict):
-    """The box model a calibration file describes and its factors: (model, {name: factor}),
-    the model assembled from the file's ``factor_set`` (files without one: grouped) at its
-    panel orders plus ``order_change`` (files without one: 0), every factor it does not name
-    nominal. InputError for an unknown set or factor, a factor that is not a positive
-    number, or an ``order_change`` that is not an integer."""
-    try:
-        factors = factor_set(calibration.get("factor_set"))
-    except ValueError as e:
-        raise InputError(str(e), key="factor_set") from None
-    params = calibration.get("parameters", {})
-    if not isinstance(params, dict):
-        raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", key="parameters")
-    unknown = sorted(set(params) - set(factors.names))
-    if unknown:
-        raise InputError(f"box parameter(s) {', '.join(unknown)} unknown to the {factors.name} factor set; known: "
-                         f"{', '.join(factors.names)}", key="parameters")
-    bad = [n for n, x in params.items()
-           if isinstance(x, bool) or not (isinstance(x, (int, float)) and np.isfinite(x) and x > 0)]
-    if bad:
-        raise InputError(f"box parameter(s) {', '.join(bad)} must be positive numbers", key="parameters")
-    order_change = calibration.get("order_change", 0)
-    lowest = 1 - min(min(o) for o in ORDERS.values())
-    if isinstance(order_change, bool) or not isinstance(order_change, int) or order_change < lowest:
-        raise InputError(f"'order_change' must be an integer >= {lowest} (every panel order >= 1), got "
-                         f"{order_change!r}", key="order_change")
-    model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
-    return model, {n: float(params.get(n, 1.0)) for n in model.names}
 
 
 def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.Generator, settings: PSOSettings, *,
@@ -137,8 +114,9 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
                   sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
                   min_carbody_share: float = MIN_CARBODY_SHARE, min_mac: float = 0.0, log_factors: bool = False,
                   refine_rounds: int = 10, refine_tol_pct: float = 1e-4, polish_steps: int = 0, order_change: int = 0,
-                  swarms: int = 1, done_pct: float | None = None) -> BoxCalibration:
+                  swarms: int = 1, done_pct: float | None = None, exciter: Sensor | None = None) -> BoxCalibration:
     """``sensors``: the campaign sensors the target shapes are given at (for the operator);
+    ``exciter``: where the test's force acted (recorded with the sensors for the FMU);
     ``search``: one entry per factor of ``factors`` (a named set, default grouped) or, for a
     ``model`` assembled elsewhere, of that model (its file then records the set "custom");
     ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability;
@@ -233,7 +211,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     return BoxCalibration(dict(zip(names, map(float, p))), rows, float(final["max_error_pct"]), pso, refinement,
                           [float(x) for x in check["reduced_vs_full_pct"]], ident,
                           {q.name: [q.low, q.high] for q in search}, set_name,
-                          order_change if factors is not None else 0)
+                          order_change if factors is not None else 0, tuple(sensors), exciter)
 
 
 def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, high, names, *, rounds: int,
@@ -335,10 +313,12 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
     if not ident.modes:
         raise InputError("no mode identified in the analysis band; nothing to calibrate to",
                          path=campaign.root / "runs")
-    sensors = tuple(campaign.meta.sensor(n) for n in ident.sensors)
+    meta = campaign.meta
+    sensors = tuple(meta.sensor(n) for n in ident.sensors)
+    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
     search = box_search(campaign.meta.priors)
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
                          refine=refine, progress=progress, swarms=swarms, done_pct=done_pct,
-                         refine_tol_pct=refine_tol_pct, order_change=order_change), ident
+                         refine_tol_pct=refine_tol_pct, order_change=order_change, exciter=exciter), ident

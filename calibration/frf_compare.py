@@ -2,7 +2,7 @@
 
 The model accelerance from the exciter force to every floor accelerometer is the modal
 sum of the calibrated box model (all modes up to 100 Hz and the static residual of the
-rest, :func:`calibration.truth.excitation.truth_modes`), with the identified damping ratio
+rest, :func:`calibration.models.box.modal.modal_model`), with the identified damping ratio
 on each mode paired with a measured one and the median identified ratio on the others.
 Per channel over the analysis band: the frequency response assurance criterion
 
@@ -44,8 +44,8 @@ class FRFComparison:
 
 
 def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentification | None = None) -> FRFComparison:
-    from .calibrate_box import calibrated_box_model
-    from .truth.excitation import truth_modes
+    from .models.box.shinkansen import calibrated_box_model
+    from .models.box.modal import modal_model
 
     ident = identify_excitation(campaign) if ident is None else ident
     meta = campaign.meta
@@ -55,7 +55,7 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
         raise InputError("not a box calibration result: it needs parameters and fit", key="--calibration")
     fit = calibration["fit"]
     model, params = calibrated_box_model(calibration)  # the file's factor set; parameters checked
-    modal0 = truth_modes(params, sensors=sensors, exciter=exciter, model=model)
+    modal0 = modal_model(model, params, sensors=sensors, exciter=exciter)
     zeta = np.full(modal0.frequency_hz.size, np.nan)
     # damping of the modes the calibration was fitted to (its own identification), by label
     rows = calibration.get("identified_modes") or [{"label": m.label, "damping_ratio": m.damping_ratio}
@@ -68,7 +68,7 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
     default = float(np.median([z for z in identified.values() if z is not None]))
     zeta = np.where(np.isfinite(zeta), zeta, np.where(np.array(modal0.kind) == "elastic", default,
                                                       modal0.damping_ratio))
-    modal = truth_modes(params, damping=zeta, sensors=sensors, exciter=exciter, model=model)
+    modal = modal_model(model, params, damping=zeta, sensors=sensors, exciter=exciter)
     lo, hi = ident.settings.band
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]

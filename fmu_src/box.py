@@ -4,17 +4,18 @@ The calibrated carbody is reduced to its free-free modes below ``cutoff_hz`` plu
 residual-flexibility pseudo-modes of every load it takes (static correction), with rigid
 bogies and the suspension elements (:func:`calibration.models.box.reduction.reduce_vehicle`).
 Inputs: the car FMU's rail inputs and the exciter force; outputs: the floor accelerations at
-the shaker test's measurement points. The cut-off is chosen at export: the matrices are
+the measurement points the calibration was fitted at (or a campaign's sensors). The cut-off is chosen at export: the matrices are
 computed here, and only the carbody's structural damping is a parameter of the FMU.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from calibration.data.campaign import Sensor
 from calibration.data.errors import InputError
-from calibration.calibrate_box import calibrated_box_model
 from calibration.models.box.reduction import ReducedVehicle, reduce_vehicle
-from calibration.truth.excitation import EXCITER, SENSOR_GRID
+from calibration.models.box.rig import points_from_calibration
+from calibration.models.box.shinkansen import calibrated_box_model
 
 from .variables import (OUT_ACC, ModelSpec, Variable, _ordered, default_track_start, rail_inputs,
                         standalone_variables)
@@ -42,17 +43,18 @@ def data_header(r: ReducedVehicle) -> str:
         _array("BOX_WHEEL_X", r.wheelset_x), "#endif", ""])
 
 
-def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | None = None,
-                  track_start: float = 0.0) -> tuple[Variable, ...]:
+def box_variables(reduced: ReducedVehicle, zeta: float, points: tuple[tuple[Sensor, ...], Sensor], *,
+                  track_file: str | None = None, track_start: float = 0.0) -> tuple[Variable, ...]:
+    sensors, exciter = points
     v = [Variable("time", "Real", "independent", "continuous", "simulation time", "s"),
          Variable("zeta_carbody", "Real", "parameter", "tunable",
                   "damping ratio of the carbody's elastic modes (structural damping)", None, float(zeta))]
     v += rail_inputs()
     v.append(Variable("exciter_force", "Real", "input", "continuous",
-                      f"vertical force of the exciter under the floor at {EXCITER.position} m (up positive)", "N",
+                      f"vertical force of the exciter under the floor at {exciter.position} m (up positive)", "N",
                       0.0, lti_input=True))
     for k, name in enumerate(reduced.sensors):
-        s = next(x for x in SENSOR_GRID if x.name == name)
+        s = next(x for x in sensors if x.name == name)
         v.append(Variable(name, "Real", "output", "continuous",
                           f"vertical floor acceleration at ({s.position[0]:+.2f}, {s.position[1]:+.2f}) m", "m/s2",
                           output=(OUT_ACC, -1, 0.0, k)))
@@ -60,13 +62,16 @@ def box_variables(reduced: ReducedVehicle, zeta: float, *, track_file: str | Non
     return _ordered(v)
 
 
-def box_reduced(calibration: dict, cutoff_hz: float = DEFAULT_CUTOFF_HZ, *, model=None) -> ReducedVehicle:
+def box_reduced(calibration: dict, cutoff_hz: float = DEFAULT_CUTOFF_HZ, *, model=None,
+                points: tuple[tuple[Sensor, ...], Sensor] | None = None) -> ReducedVehicle:
     """The calibrated vehicle reduced for the FMU; ``model``: (model, factors) of
-    :func:`calibrated_box_model` when already built (the file's factor set otherwise)."""
+    :func:`calibrated_box_model` when already built (the file's factor set otherwise);
+    ``points``: (sensors, exciter), the calibration file's when not given."""
     if not 10.0 <= cutoff_hz <= 300.0:
         raise InputError(f"cut-off {cutoff_hz} Hz outside 10-300 Hz", key="--cutoff-hz")
     model, p = calibrated_box_model(calibration) if model is None else model
-    return reduce_vehicle(model, p, cutoff_hz, SENSOR_GRID, EXCITER)
+    sensors, exciter = points_from_calibration(calibration) if points is None else points
+    return reduce_vehicle(model, p, cutoff_hz, sensors, exciter)
 
 
 def calibrated_damping(calibration: dict) -> float:
@@ -77,11 +82,15 @@ def calibrated_damping(calibration: dict) -> float:
 
 
 def box_spec(calibration: dict, *, cutoff_hz: float = DEFAULT_CUTOFF_HZ, track=None,
-             reduced: ReducedVehicle | None = None) -> ModelSpec:
-    r = box_reduced(calibration, cutoff_hz) if reduced is None else reduced
+             reduced: ReducedVehicle | None = None,
+             points: tuple[tuple[Sensor, ...], Sensor] | None = None) -> ModelSpec:
+    """The FMU's description; ``points``: (sensors, exciter) its outputs and force input are
+    at, the calibration file's when not given (``reduced`` must be built at them)."""
+    points = points_from_calibration(calibration) if points is None else points
+    r = box_reduced(calibration, cutoff_hz, points=points) if reduced is None else reduced
     # BOX_WHEEL_X is written with repr(), so the C reads these offsets bit for bit
     start = default_track_start(track, [float(x) for x in r.wheelset_x]) if track else 0.0
-    variables = box_variables(r, calibrated_damping(calibration), track_file="track.csv" if track else None,
+    variables = box_variables(r, calibrated_damping(calibration), points, track_file="track.csv" if track else None,
                               track_start=start)
     return ModelSpec("railcal_box", f"box-type vehicle (Shinkansen-type carbody: {r.n_modes} modes below "
                      f"{r.cutoff_hz:g} Hz and {r.M.shape[0] - 12 - r.n_modes} static-correction pseudo-modes; "

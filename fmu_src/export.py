@@ -3,11 +3,13 @@
 The calibration names its model: ``car2d`` gives the car FMU of ``shared/spec/interfaces.md``
 (calibrated parameters as tunable parameters), ``box`` the box-type vehicle FMU. A track
 recording (campaign format, checked on reading) is shipped in ``resources/`` for
-stand-alone running; a campaign adds an output per calibrated acceleration sensor.
+stand-alone running. A campaign adds an output per calibrated acceleration sensor (car) or
+gives the box FMU's measurement points (box; otherwise the calibration file's).
 """
 from __future__ import annotations
 
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,18 @@ def car_sensors(campaign, p: CarParameters) -> tuple:
     centre = {"carbody": 0.0, "bogie1": p.L_v, "bogie2": -p.L_v}
     return tuple((s.name, s.body, float(s.position[0]) - centre[s.body]) for s in campaign.meta.sensors
                  if s.quantity == "acceleration" and s.direction == "z" and s.body in CAR_BODIES)
+
+
+def box_points(campaign) -> tuple:
+    """(sensors, exciter) of a stationary excitation campaign for the box FMU: its vertical
+    accelerometers and the excitation's force sensor at the excitation point."""
+    meta = campaign.meta
+    if meta.excitation is None:
+        raise InputError("the campaign has no [excitation]: the box FMU's force input needs the exciter's point",
+                         path=campaign.root / "campaign.toml", key="excitation")
+    sensors = tuple(s for s in meta.sensors if s.quantity == "acceleration" and s.direction == "z")
+    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    return sensors, exciter
 
 
 def _track_csv(track: Path, folder: Path) -> Path:
@@ -54,7 +68,8 @@ def export_fmu(calibration: dict, fmi_version: int, out: Path, *, track: Path | 
             from .box import DEFAULT_CUTOFF_HZ, box_spec
 
             try:
-                spec = box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track_csv)
+                spec = box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track_csv,
+                                points=box_points(campaign) if campaign is not None else None)
             except TrackTooShort as e:
                 raise InputError(str(e), path=track) from None
             return build_fmu(spec, fmi_version, out, platforms=platforms)

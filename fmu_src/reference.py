@@ -77,7 +77,7 @@ def smooth_profile(length: float, seed: int, *, dx: float = 0.25, min_wavelength
                    max_wavelength: float = 70.0) -> tuple[np.ndarray, np.ndarray, Profile]:
     """A synthetic vertical track profile (German low-disturbance PSD, ``min_wavelength``-
     ``max_wavelength`` band) on a grid, and its cubic-spline interpolant with derivatives."""
-    from calibration.truth.track import german_vertical_psd, synthesise_profile
+    from calibration.models.track_irregularity import german_vertical_psd, synthesise_profile
 
     s, z = synthesise_profile(german_vertical_psd, length, dx, np.random.default_rng(seed),
                               min_wavelength=min_wavelength, max_wavelength=max_wavelength)

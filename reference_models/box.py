@@ -252,7 +252,7 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
     if not zeta >= 0:
         raise ValueError(f"zeta = {zeta}; must be >= 0")
     if sensors is None or exciter is None:
-        from calibration.truth.excitation import EXCITER, SENSOR_GRID
+        from calibration.models.box.rig import EXCITER, SENSOR_GRID
         sensors = SENSOR_GRID if sensors is None else sensors
         exciter = EXCITER if exciter is None else exciter
     vehicle = getattr(vehicle_model, "vehicle", vehicle_model)
@@ -461,7 +461,7 @@ def simulate_box_exudyn(vehicle_model, parameters, *, duration: float, cutoff_hz
     Jacobian of t = 0 (Newton off; with it on, the answers agree to 6e-8 at twice the cost).
     ``modes``: the carbody's modal data if already computed (:func:`build_box_exudyn`)."""
     if sensors is None:
-        from calibration.truth.excitation import SENSOR_GRID
+        from calibration.models.box.rig import SENSOR_GRID
         sensors = SENSOR_GRID
     ratio = output_interval / step_size
     if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:

@@ -45,10 +45,11 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 
 def _init() -> None:
-    from calibration.truth.excitation import ExcitationSettings, build_model
+    from calibration.models.box.shinkansen import shinkansen_model
+    from calibration.truth.excitation import ExcitationSettings
 
     _MODEL["settings"] = ExcitationSettings(runs=2, duration=300.0, order_change=COARSE_BOX_ORDERS)
-    _MODEL["model"] = build_model(_MODEL["settings"])
+    _MODEL["model"] = shinkansen_model(_MODEL["settings"].order_change)
 
 
 def _case(case: dict) -> dict:

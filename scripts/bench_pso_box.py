@@ -23,11 +23,13 @@ import time
 import numpy as np
 
 from calibration.models.box import assemble, shinkansen_vehicle
-from calibration.models.box.fit import BoxFit, refine_box, select_targets, sensor_operator
+from calibration.box_refine import refine_box
+from calibration.models.box.fit import BoxFit, select_targets, sensor_operator
 from calibration.models.box.reduced import full_modes
 from calibration.optimisers.base import SearchParameter, bounds
 from calibration.optimisers.pso import PSOSettings, particle_swarm
-from calibration.truth.excitation import SENSOR_GRID, ExcitationSettings, campaign_priors, draw_truth_parameters
+from calibration.models.box.rig import SENSOR_GRID
+from calibration.truth.excitation import ExcitationSettings, campaign_priors, draw_truth_parameters
 
 
 def main() -> int:

@@ -62,7 +62,7 @@ import numpy as np
 
 from calibration.calibrate import read_targets
 from calibration.calibrate_box import box_search, calibrate_box
-from calibration.cli import TYPED_MIN_MAC
+from railcal.cli import TYPED_MIN_MAC
 from calibration.data.campaign import Sensor
 from calibration.models.box import FactorSet, assemble, shinkansen_vehicle
 from calibration.models.box.assembly import StiffnessParameter
@@ -73,7 +73,7 @@ from calibration.models.box.shinkansen import CREDIBLE_FACTORS, POLISH_JOINT_FAC
 from calibration.optimisers.base import bounds
 from calibration.optimisers.minimax import linearised_minimax
 from calibration.optimisers.pso import PSOSettings
-from calibration.truth.excitation import SENSOR_GRID
+from calibration.models.box.rig import SENSOR_GRID
 
 TARGETS = Path(__file__).parent / "data" / "rtri_figure5_targets.toml"
 #: ``--orthotropic``: each roof, floor and side rigidity along and across the car a factor of

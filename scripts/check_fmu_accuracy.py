@@ -27,7 +27,7 @@ import numpy as np
 from calibration.models.box import assemble, shinkansen_vehicle
 from calibration.models.box.reduction import frf_full, frf_reduced, reduce_vehicle
 from calibration.models.vehicles import INTERCITY_TRAILER as CAR
-from calibration.truth.excitation import EXCITER, SENSOR_GRID
+from calibration.models.box.rig import EXCITER, SENSOR_GRID
 from fmu_src.box import box_spec
 from fmu_src.build import build_fmu
 from fmu_src.importers import simulate_libcosim
@@ -54,7 +54,8 @@ def main() -> int:
                                             reduced.n_modes, "frf_error_at_hz": dict(zip(f.tolist(),
                                                                                          np.round(frf_err, 5).tolist()))}}))
         specs = {"car": car2d_spec(CAR.as_dict(), track=track),
-                 "box": box_spec({"model": "box", "parameters": {}}, reduced=reduced, track=track)}
+                 "box": box_spec({"model": "box", "parameters": {}},
+                                 points=(SENSOR_GRID, EXCITER), reduced=reduced, track=track)}
         for name, spec in specs.items():
             outs = [v.name for v in spec.outputs]
             sv = {"speed": SPEED, "track_start": START}

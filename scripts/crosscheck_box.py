@@ -39,13 +39,9 @@ import numpy as np  # noqa: E402
 
 from calibration.models.box.reduction import reduce_vehicle  # noqa: E402
 from calibration.models.simulate import ModalSimulator  # noqa: E402
-from calibration.truth.excitation import (  # noqa: E402
-    EXCITER,
-    SENSOR_GRID,
-    ExcitationSettings,
-    band_random,
-    build_model,
-)
+from calibration.models.box.rig import EXCITER, SENSOR_GRID  # noqa: E402
+from calibration.models.box.shinkansen import shinkansen_model  # noqa: E402
+from calibration.truth.excitation import band_random  # noqa: E402
 from fmu_src.box import box_spec  # noqa: E402
 from fmu_src.build import build_fmu  # noqa: E402
 from fmu_src.reference import box_reference, nrmse, smooth_profile  # noqa: E402
@@ -74,7 +70,7 @@ def main() -> int:
                     help="exudyn's step over the track [s]; the trapezoidal rule's error grows as its square")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    model = build_model(ExcitationSettings(order_change=-4 if args.coarse else 0))
+    model = shinkansen_model(-4 if args.coarse else 0)
     p = np.ones(len(model.names))
     reduced = reduce_vehicle(model, p, args.cutoff, SENSOR_GRID, EXCITER)
     print(f"box model: {model.n_dof} DOF; reduced vehicle {reduced.M.shape[0]} coordinates "
@@ -143,7 +139,8 @@ def over_the_track(model, p, reduced, modes, t_modes: float, duration: float, st
     with tempfile.TemporaryDirectory() as tmp:
         track = Path(tmp) / "track.csv"
         np.savetxt(track, np.column_stack([s, z]), delimiter=",", header="distance,level", comments="", fmt="%.17g")
-        fmu = build_fmu(box_spec({"model": "box", "parameters": {}}, reduced=reduced, track=track), 2,
+        fmu = build_fmu(box_spec({"model": "box", "parameters": {}},
+                                 points=(SENSOR_GRID, EXCITER), reduced=reduced, track=track), 2,
                         Path(tmp) / "box2.fmu")
         import fmpy
 

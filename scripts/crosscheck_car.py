@@ -24,7 +24,7 @@ from calibration.models.vehicles import INTERCITY_TRAILER, VEHICLES
 from fmu_src.reference import smooth_profile
 from reference_models.car2d import (OUTPUTS, IntegratorSettings, eigen_errors, exudyn_eigenvalues,
                                     railcal_eigenvalues)
-from reference_models.crosscheck import crosscheck_car
+from railcal.crosscheck import crosscheck_car
 
 TOL_UNDAMPED, TOL_DAMPED, TOL_NRMSE, TOL_WALL = 1e-6, 1e-4, 1e-3, 30.0
 SPEED, DURATION = 40.0, 10.0  # [m/s], [s]
@@ -56,7 +56,7 @@ def eigen_tables() -> bool:
 
 
 def time_response(with_fmu: bool) -> bool:
-    """The time part of ``railcal crosscheck`` (reference_models.crosscheck), printed as a table."""
+    """The time part of ``railcal crosscheck`` (railcal.crosscheck), printed as a table."""
     s, z, _ = smooth_profile(900.0, seed=3)
     rep = crosscheck_car(INTERCITY_TRAILER, s, z, speed=SPEED, duration=DURATION, with_fmu=with_fmu)["time"]
     print(f"\nintercity trailer, {rep['duration_s']:g} s over smooth_profile(900 m, seed 3) from {rep['start_m']:g} m "

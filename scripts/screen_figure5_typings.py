@@ -38,14 +38,14 @@ sys.path.insert(0, str(Path(__file__).parent))
 from check_figure5_credible import TARGETS  # noqa: E402
 
 from calibration.calibrate import read_targets  # noqa: E402
-from calibration.cli import TYPED_MIN_MAC  # noqa: E402
+from railcal.cli import TYPED_MIN_MAC  # noqa: E402
 from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402
 from calibration.models.box.reduced import ReducedFamily, full_modes  # noqa: E402
 from calibration.models.box.shinkansen import CREDIBLE_FACTORS, Geometry  # noqa: E402
 from calibration.optimisers.minimax import linearised_minimax  # noqa: E402
-from calibration.truth.excitation import SENSOR_GRID  # noqa: E402
+from calibration.models.box.rig import SENSOR_GRID
 
 SECOND_OF = {"vertical_bending_2": "vertical_bending_1", "torsion_2": "torsion_1", "breathing_2": "breathing"}
 SHORT = {"vertical_bending_1": "B1", "vertical_bending_2": "B2", "torsion_1": "T1", "torsion_2": "T2",

@@ -127,8 +127,8 @@ COARSE_BOX_ORDERS = -4  # every panel order - 4: the shaker-test files stay fast
 @pytest.fixture(scope="session")
 def coarse_box_model():
     """The Shinkansen-type box model at coarse panel orders, assembled once per session."""
-    from calibration.truth.excitation import ExcitationSettings, build_model
-    return build_model(ExcitationSettings(order_change=COARSE_BOX_ORDERS))
+    from calibration.models.box.shinkansen import shinkansen_model
+    return shinkansen_model(COARSE_BOX_ORDERS)
 
 
 # ------------------------------------------------------------------ FMUs

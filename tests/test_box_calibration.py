@@ -11,15 +11,17 @@ from conftest import COARSE_BOX_ORDERS
 from threadpoolctl import threadpool_limits
 
 from calibration.calibrate_box import box_search, calibrate_box, targets_from_identification
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.excitation import ShakerMode, identify_excitation
-from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass,
-                                        mac_matrix, polish_box, select_targets, sensor_operator)
+from calibration.box_refine import polish_box
+from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass_matrix,
+                                        mac_matrix, select_targets, sensor_operator)
 from calibration.models.box.reduced import full_modes
 from calibration.models.box.mode_types import MODE_TYPES, template
 from calibration.optimisers.pso import PSOSettings
-from calibration.truth.excitation import SENSOR_GRID, ExcitationSettings, synth_excitation, truth_modes
+from calibration.models.box.rig import SENSOR_GRID
+from calibration.truth.excitation import ExcitationSettings, synth_excitation, truth_modes
 
 SETTINGS = ExcitationSettings(runs=1, duration=240.0, order_change=COARSE_BOX_ORDERS)
 
@@ -181,7 +183,7 @@ def test_a_target_pairs_only_with_carbody_modes(model):
     skips modes whose kinetic energy is mostly outside the carbody; 0 pairs blind."""
     S = sensor_operator(model, SENSOR_GRID)
     f, X = full_modes(model, np.ones(len(model.names)), 30)
-    share = np.einsum("dm,dm->m", X, carbody_mass(model) @ X)
+    share = np.einsum("dm,dm->m", X, carbody_mass_matrix(model) @ X)
     assert np.all((share > -1e-12) & (share < 1 + 1e-9))  # M-normalised: carbody + bogies = 1
     bogie = int(np.argmin(share))
     assert share[bogie] < 0.1
@@ -396,7 +398,7 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
     """The credible set: the swarm and the refinement move 14 factors, the end-wall and
     floor-floor joints join, nominal, in the polish; the file records the set, and the model
     it describes is rebuilt from it (old files without a set: the grouped factors)."""
-    from calibration.calibrate_box import calibrated_box_model
+    from calibration.models.box.shinkansen import calibrated_box_model
     from calibration.data.errors import InputError
     from calibration.models.box import factor_set
     from calibration.models.box.mode_types import typed_targets
@@ -492,7 +494,7 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
 
 def test_the_summary_names_a_pairing_a_hair_under_the_mac_floor():
     """A MAC of 0.7999991 rounds to 0.800 but is under a floor of 0.8: the summary says so."""
-    from calibration.cli import _unsound
+    from railcal.cli import _unsound
     fit = [{"label": "torsion_1", "mac": 0.884, "sound": True}, {"label": "breathing", "mac": 0.7999991, "sound": False}]
     assert _unsound(fit) == ", breathing unsound (MAC 0.799999)"
     assert _unsound(fit[:1]) == ""

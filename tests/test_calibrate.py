@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from calibration.calibrate import calibrate_car
-from calibration.cli import main
+from railcal.cli import main
 from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
 from calibration.models.vehicles import INTERCITY_TRAILER
 from calibration.optimisers import PSOSettings, SearchParameter

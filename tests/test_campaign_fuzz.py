@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calibration.cli import main
+from railcal.cli import main
 
 from fuzz_mutants import CLASSES, SEED, calibration_json, write_base
 

@@ -20,7 +20,7 @@ import pyarrow.parquet as pq
 import pytest
 import tomli_w
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.data.outputs import CampaignWriter
 from calibration.data.errors import CampaignError

@@ -141,7 +141,7 @@ def test_seed_geometry_is_inferred_from_tables_8_and_9():
 def test_manchester_benchmark_reproduces_the_seed_table_2_row(tmp_path, capsys):
     import json
 
-    from calibration.cli import main
+    from railcal.cli import main
     from calibration.models.vehicles import SEED_TABLE2_MANCHESTER
 
     out = tmp_path / "modes.json"
@@ -161,7 +161,7 @@ def test_empty_chunk_streams_nothing():
 def test_modes_command_pairs_each_bogie_mode_with_its_own_damping(tmp_path, capsys):
     import json
 
-    from calibration.cli import main
+    from railcal.cli import main
 
     out = tmp_path / "m.json"
     assert main(["modes", "--out", str(out)]) == 0

@@ -10,7 +10,7 @@ from importlib.metadata import version
 
 import pytest
 
-from calibration.cli import build_parser, main
+from railcal.cli import build_parser, main
 from calibration.data.outputs import SYNTH_MARKER
 from test_outputs import special_files, still_special
 

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from calibration import cli, demo
-from calibration.calibrate_box import calibrated_box_model
+from railcal import cli, demo
+from calibration.models.box.shinkansen import calibrated_box_model
 from calibration.data.errors import InputError
-from calibration.truth.excitation import build_model
+from calibration.models.box.shinkansen import shinkansen_model
 from conftest import COARSE_BOX_ORDERS
 
 
@@ -61,7 +61,7 @@ def test_calibration_file_rebuilds_the_coarse_model_it_was_calibrated_on():
     """A coarse calibration's FRFs and FMU must come from the discretisation it was
     calibrated on: the same mass matrix and, at nominal factors, the same stiffness."""
     model, p = calibrated_box_model({"model": "box", "parameters": {}, "order_change": COARSE_BOX_ORDERS})
-    ref = build_model(demo.ExcitationSettings(order_change=COARSE_BOX_ORDERS))
+    ref = shinkansen_model(COARSE_BOX_ORDERS)
     assert model.n_dof == ref.n_dof < 2709  # the full-order model's degrees of freedom
     K = model.stiffness([p[n] for n in model.names])
     K0 = ref.stiffness(np.ones(len(ref.names)))

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.diagnosis.diagnose import _losses, diagnose, reductions
 from calibration.diagnosis.records import Record, RecordSettings, band_edges, statistics

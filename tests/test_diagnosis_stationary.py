@@ -12,7 +12,7 @@ import pytest
 import scipy.sparse.linalg
 from conftest import COARSE_BOX_ORDERS
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import CampaignMeta, Excitation, Prior, open_campaign
 from calibration.data.outputs import CampaignWriter
 from calibration.data.errors import InputError
@@ -20,8 +20,10 @@ from calibration.diagnosis.stationary import (EXTENSIONS, Operators, Reduced, St
                                               _panel_model, diagnose_stationary, equipment_accelerance,
                                               modal_accelerance, plot_stationary_diagnosis)
 from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, effect_spec
-from calibration.truth.excitation import (EXCITER, SENSOR_GRID, ExcitationSettings, ModalModel, UnderfloorEquipment,
-                                          add_equipment, campaign_priors, draw_truth_parameters, soften_panel,
+from calibration.models.box.modal import ModalModel
+from calibration.models.box.rig import EXCITER, SENSOR_GRID
+from calibration.truth.excitation import (ExcitationSettings, UnderfloorEquipment, add_equipment,
+                                          campaign_priors, draw_truth_parameters, soften_panel,
                                           synth_excitation, truth_modes)
 
 SETTINGS = ExcitationSettings(runs=2, duration=300.0, order_change=COARSE_BOX_ORDERS)

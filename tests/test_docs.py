@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from calibration.cli import build_parser
+from railcal.cli import build_parser
 from calibration.data.campaign import parse_meta
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"

@@ -13,7 +13,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 from calibration.models.box.reduction import frf_full, frf_reduced, reduce_vehicle
-from calibration.truth.excitation import EXCITER, SENSOR_GRID
+from calibration.models.box.rig import EXCITER, SENSOR_GRID
 from fmu_src.box import box_spec
 from fmu_src.build import build_fmu
 from fmu_src.reference import box_reference, nrmse
@@ -31,7 +31,8 @@ def reduced(coarse_box_model):
 @pytest.fixture(scope="module")
 def box_fmus(tmp_path_factory, reduced, car_track):
     out = tmp_path_factory.mktemp("box")
-    spec = box_spec({"model": "box", "parameters": {}}, reduced=reduced, track=car_track[0])
+    spec = box_spec({"model": "box", "parameters": {}},
+                    points=(SENSOR_GRID, EXCITER), reduced=reduced, track=car_track[0])
     return spec, {v: build_fmu(spec, v, out / f"box{v}.fmu") for v in (2, 3)}
 
 

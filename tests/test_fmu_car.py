@@ -208,7 +208,7 @@ def test_with_its_defaults_the_car_stands_on_its_track_and_running_off_it_is_a_l
 def test_export_refuses_a_track_shorter_than_the_car(tmp_path, capsys):
     import json
 
-    from calibration.cli import main
+    from railcal.cli import main
 
     cal = tmp_path / "cal.json"
     cal.write_text(json.dumps({"model": "car2d", "parameters": CAR.as_dict()}))
@@ -345,7 +345,7 @@ def test_libcosim_runs_the_fmi2_fmu_like_fmpy_and_the_model(car_fmus, car_track,
 def test_export_fmu_builds_from_a_calibration_file_and_refuses_bad_ones(tmp_path, car_track, capsys):
     import json
 
-    from calibration.cli import main
+    from railcal.cli import main
 
     good = tmp_path / "cal.json"
     good.write_text(json.dumps({"model": "car2d", "parameters": CAR.as_dict()}))

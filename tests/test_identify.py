@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 import tomli_w
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.fdd import RailInput, derived_channels
 from calibration.identification.in_service import RIGID_LABELS, identify_in_service

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import CampaignMeta, Sensor, open_campaign
 from calibration.data.outputs import CampaignWriter
 from calibration.identification.in_service import RIGID_LABELS, identify_in_service

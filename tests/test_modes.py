@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.models.assembly import Body, Attachment, SpringDamper
 from calibration.models.car2d import (CarExtras, build_car, damped_modes, frequencies_by_label, undamped_modes)
 from calibration.models.vehicles import INTERCITY_TRAILER as CAR
@@ -123,7 +123,7 @@ def test_box_modes_have_unique_labels_and_the_bogie_pitch_pair_its_closed_form(c
 
 
 def test_railcal_modes_box_takes_factors_and_refuses_bad_ones(tmp_path, capsys, monkeypatch, coarse_box_model):
-    import calibration.calibrate_box as calibrate_box
+    import calibration.models.box.shinkansen as shinkansen
 
     def coarse(calibration):  # the coarse model: the full one takes half a minute to assemble and solve
         return coarse_box_model, {n: float(calibration["parameters"].get(n, 1.0)) for n in coarse_box_model.names}
@@ -133,7 +133,7 @@ def test_railcal_modes_box_takes_factors_and_refuses_bad_ones(tmp_path, capsys, 
     assert "roof_membrane must be positive" in capsys.readouterr().err
     assert main(["modes", "--model", "box", "--param", "nosuch=1"]) == 2
     assert "nosuch unknown" in capsys.readouterr().err
-    monkeypatch.setattr(calibrate_box, "calibrated_box_model", coarse)
+    monkeypatch.setattr(shinkansen, "calibrated_box_model", coarse)
     out = tmp_path / "box.json"
     assert main(["modes", "--model", "box", "--param", "floor_bending=1.5", "--out", str(out)]) == 0
     rep = json.loads(out.read_text())

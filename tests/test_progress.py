@@ -4,7 +4,7 @@ import io
 
 import numpy as np
 
-from calibration.cli import _progress
+from railcal.cli import _progress
 from calibration.optimisers.base import SearchParameter
 from calibration.optimisers.pso import PSOSettings, particle_swarm
 from calibration.progress import Progress, counter

@@ -17,13 +17,9 @@ from conftest import CAR_FMU_START as START
 
 from calibration.models.box.reduction import reduce_vehicle
 from calibration.models.simulate import ModalSimulator
-from calibration.truth.excitation import (
-    EXCITER,
-    SENSOR_GRID,
-    ExcitationSettings,
-    band_random,
-    build_model,
-)
+from calibration.models.box.rig import EXCITER, SENSOR_GRID
+from calibration.models.box.shinkansen import shinkansen_model
+from calibration.truth.excitation import band_random
 from fmu_src.box import box_spec
 from fmu_src.build import build_fmu
 from fmu_src.reference import box_reference, nrmse
@@ -42,7 +38,7 @@ CUTOFF, ZETA = 60.0, 0.02
 
 @pytest.fixture(scope="module")
 def coarse():
-    model = build_model(ExcitationSettings(order_change=-4))
+    model = shinkansen_model(-4)
     p = np.ones(len(model.names))
     return model, p, reduce_vehicle(model, p, CUTOFF, SENSOR_GRID, EXCITER)
 
@@ -149,7 +145,8 @@ def over_the_track(coarse, car_track, tmp_path_factory):
     res = simulate_box_exudyn(model, p, duration=0.5, rail=rail, cutoff_hz=CUTOFF, zeta=ZETA, step_size=2e-4)
     t = res.t
     ref = box_reference(reduced, ZETA, profile, SPEED, t, np.zeros(t.size), start=START)
-    fmu = build_fmu(box_spec({"model": "box", "parameters": {}}, reduced=reduced, track=path), 2,
+    fmu = build_fmu(box_spec({"model": "box", "parameters": {}},
+                             points=(SENSOR_GRID, EXCITER), reduced=reduced, track=path), 2,
                     tmp_path_factory.mktemp("box_ref") / "box2.fmu")
     out = fmpy.simulate_fmu(str(fmu.path), stop_time=t[-1], step_size=1e-3, output_interval=1e-3,
                             start_values={"speed": SPEED, "track_start": START, "zeta_carbody": ZETA},

@@ -158,7 +158,7 @@ def test_integrator_settings_refuse_nonphysical_values():
 def test_railcal_crosscheck_writes_eigen_and_time_comparisons_with_a_verdict(tmp_path, capsys):
     import json
 
-    from calibration.cli import main
+    from railcal.cli import main
     from calibration.models.vehicles import INTERCITY_TRAILER
 
     cal = tmp_path / "cal.json"
@@ -185,7 +185,7 @@ def test_the_crosscheck_verdict_judges_the_physics_and_only_reports_the_wall_tim
     import itertools
     import types
 
-    import reference_models.crosscheck as crosscheck
+    import railcal.crosscheck as crosscheck
 
     ticks = itertools.count(0.0, 1000.0)
     monkeypatch.setattr(crosscheck, "time", types.SimpleNamespace(perf_counter=lambda: next(ticks)))

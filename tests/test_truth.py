@@ -9,7 +9,8 @@ import scipy.signal
 from calibration.data.campaign import open_campaign
 from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
 from calibration.models.parameters import CarParameters
-from calibration.truth.track import Line, LineSpec, german_vertical_psd, synthesise_profile
+from calibration.models.track_irregularity import german_vertical_psd, synthesise_profile
+from calibration.truth.track import Line, LineSpec
 
 
 def test_synthesised_profile_has_the_variance_of_the_german_spectrum():

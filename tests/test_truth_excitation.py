@@ -11,11 +11,13 @@ from conftest import COARSE_BOX_ORDERS
 import scipy.signal
 import scipy.sparse.linalg
 
-from calibration.cli import main
+from railcal.cli import main
 from calibration.data.campaign import open_campaign
-from calibration.truth.excitation import (EXCITER, SENSOR_GRID, ExcitationSettings, anti_alias_sos,
-                                          draw_truth_parameters, floor_panel, synth_excitation, truth_modes,
-                                          vertical_operators)
+from calibration.models.box.modal import vertical_operators
+from calibration.models.box.rig import EXCITER, SENSOR_GRID
+from calibration.models.box.shinkansen import floor_panel
+from calibration.truth.excitation import (ExcitationSettings, anti_alias_sos, draw_truth_parameters,
+                                          synth_excitation, truth_modes)
 
 SETTINGS = ExcitationSettings(runs=1, duration=60.0, order_change=COARSE_BOX_ORDERS)
 
@@ -85,7 +87,7 @@ def test_modal_truth_with_its_residual_mode_is_the_full_model_in_the_force_band(
                    exciter_shape=undamped.exciter_shape[:-1], damping_ratio=undamped.damping_ratio[:-1])
     p = [modal.parameters[n] for n in model.names]
     K, M = model.stiffness(p).tocsc(), model.M.tocsc()
-    S, e = vertical_operators(model)
+    S, e = vertical_operators(model, SENSOR_GRID, EXCITER)
     for f in (6.3, 17.7, 33.1, 47.9):
         w = 2 * np.pi * f
         exact = -w**2 * (S @ scipy.sparse.linalg.spsolve((K - w**2 * M).tocsc(), e))

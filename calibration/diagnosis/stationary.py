@@ -285,7 +285,7 @@ def _points_operator(model: BoxModel, points) -> np.ndarray:
 def _rigid_points(model: BoxModel) -> tuple[np.ndarray, np.ndarray]:
     """Displacement rows at 9 points of every panel (3 per point) and the orthogonal
     complement projector of rigid-body motion fields over them (as the truth classifies
-    modes: :func:`calibration.truth.excitation._rigid_share`)."""
+    modes: :func:`calibration.models.box.modal.rigid_share`)."""
     D, R = [], []
     for pn in model.vehicle.panels:
         for s in (-0.8, 0.0, 0.8):
@@ -1506,7 +1506,8 @@ def _summary(cause: str, best: dict | None, alarms: list[str], notes: list[str],
 # ------------------------------------------------------------------------------------------ main
 def _context(campaign: Campaign, settings: StationarySettings, model: BoxModel | None, say,
              without: tuple[str, ...] = ()) -> _Context:
-    from ..truth.excitation import build_model, carbody_mass
+    from ..models.box.assembly import carbody_mass
+    from ..models.box.shinkansen import shinkansen_model
 
     meta = campaign.meta
     toml = campaign.root / "campaign.toml"
@@ -1516,7 +1517,7 @@ def _context(campaign: Campaign, settings: StationarySettings, model: BoxModel |
     if meta.excitation is None:
         raise InputError("a stationary_excitation campaign needs [excitation] sensor = ...", path=toml,
                          key="excitation")
-    model = build_model() if model is None else model
+    model = shinkansen_model() if model is None else model
     unknown = sorted(set(meta.priors) - set(model.names))
     if unknown:
         raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(model.names)}",

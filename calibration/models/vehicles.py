@@ -169,7 +169,7 @@ def box_modes(model, parameters, *, max_hz: float = BOX_MODES_MAX_HZ) -> list[Bo
     import types
 
     from .box.assembly import RIGID_DOFS
-    from .box.fit import carbody_mass
+    from .box.fit import carbody_mass_matrix
     from .box.mode_types import MODE_TYPES, template
     from .box.reduced import full_modes
     from .box.shinkansen import Geometry, floor_panel
@@ -194,7 +194,7 @@ def box_modes(model, parameters, *, max_hz: float = BOX_MODES_MAX_HZ) -> list[Bo
     floor_z = D[2:3 * len(floor):3]
     sensors = [types.SimpleNamespace(position=pt) for pt in floor]
     patterns = {t: template(t, sensors, geometry.length, geometry.width) for t in MODE_TYPES}
-    bogie_share = 1.0 - np.einsum("ij,ij->j", X, carbody_mass(model) @ X)
+    bogie_share = 1.0 - np.einsum("ij,ij->j", X, carbody_mass_matrix(model) @ X)
     bogies = model.vehicle.bodies[:2]
     common = [d for d in RIGID_DOFS if all(d not in rb.fixed for rb in bogies)]
 

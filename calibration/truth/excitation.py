@@ -87,36 +87,20 @@ import scipy.signal
 
 from ..data.campaign import CampaignMeta, Excitation, Prior, Sensor
 from ..data.outputs import CampaignWriter, write_json_atomic
-from ..models.box import SEARCH_PARAMETERS, BoxModel, assemble, shinkansen_vehicle
-from ..models.box.fit import mac_matrix, sensor_operator
-from ..models.box.factor import factorise
-from ..models.box.reduced import full_modes
+from ..models.box import SEARCH_PARAMETERS, BoxModel, assemble
+from ..models.box.assembly import carbody_mass
+from ..models.box.fit import mac_matrix
+from ..models.box.modal import ModalModel, ModalSettings, modal_model
 from ..models.box.panel import Panel
-from ..models.box.shinkansen import ORDERS, Geometry, floor_panel
+from ..models.box.rig import EXCITER, GEOMETRY, SENSOR_GRID
+from ..models.box.shinkansen import ORDERS, floor_panel, shinkansen_model
 from ..models.car2d import StateSpace
 from ..models.simulate import ModalSimulator
 from .effects import EffectChoice
 from .in_service import TRUTH_FORMAT
 
-# ---------------------------------------------------------------------------- sensors
-GEOMETRY = Geometry()
 PARAMETER_NAMES = tuple(q.name for q in SEARCH_PARAMETERS)
 
-
-#: Floor accelerometers (our assumption for the seed's Figure 4): vertical, on the floor
-#: (z = floor_z), at 9 stations x = +11.2 .. -11.2 m (step 2.8 m; station 01 at the front,
-#: the bogie-1 end) on 3 lines y = +1.2 (l, left), 0 (c), -1.2 m (r, right). Named
-#: ``acc_f<station>_<line>``, e.g. ``acc_f01_l``, in station-major order; in m/s^2, AC
-#: coupled (no gravity). Each sits on the floor panel containing it (:func:`floor_panel`).
-SENSOR_GRID: tuple[Sensor, ...] = tuple(
-    Sensor(f"acc_f{i + 1:02d}_{line}", "acceleration", "m/s^2", "floor", "z", (round(11.2 - 2.8 * i, 1), y,
-                                                                                GEOMETRY.floor_z))
-    for i in range(9) for line, y in (("l", 1.2), ("c", 0.0), ("r", -1.2)))
-
-#: The exciter pushes the floor up from below at an off-centre point, off every symmetry
-#: line, so bending, torsion and breathing modes all respond; the load cell's channel.
-#: Positive force is upward (+z) on the carbody.
-EXCITER = Sensor("exciter_force", "force", "N", "floor", "z", (5.6, 0.8, GEOMETRY.floor_z))
 
 
 @dataclass(frozen=True)
@@ -184,181 +168,24 @@ def campaign_priors() -> dict[str, Prior]:
 
 
 # ------------------------------------------------------------------------ modal truth
-@dataclass(frozen=True, eq=False)
-class ModalModel:
-    """Modal model of the vehicle: kept modes and, last, the residual pseudo-mode.
-
-    ``sensor_shapes[o, k]`` and ``exciter_shape[k]`` are the vertical displacements of
-    M-normalised mode k at sensor o of :data:`SENSOR_GRID` and at the exciter [1/sqrt(kg)];
-    ``kind[k]`` is ``"elastic"``, ``"carbody_rigid"``, ``"bogie"`` or ``"residual"``
-    (residual pseudo-modes come last); ``suspension_damping`` the proportional estimate
-    phi^T C phi / (2 omega) [-].
-
-    ``damping_matrix`` (n, n) [1/s], when given, replaces diag(2 zeta omega): the modal
-    equations are q'' + D q' + diag(omega^2) q = phi_e f, and ``damping_ratio`` is then
-    only its diagonal's estimate D_kk / (2 omega_k) (:meth:`poles` gives the exact ones).
-    """
-
-    parameters: Mapping[str, float]
-    frequency_hz: np.ndarray  # (n,)
-    damping_ratio: np.ndarray  # (n,)
-    kind: tuple[str, ...]
-    sensor_shapes: np.ndarray  # (n_sensors, n)
-    exciter_shape: np.ndarray  # (n,)
-    suspension_damping: np.ndarray  # (n,)
-    damping_matrix: np.ndarray | None = None  # (n, n) [1/s]; None: modal damping
-
-    def _damping(self) -> np.ndarray:
-        if self.damping_matrix is not None:
-            return self.damping_matrix
-        return np.diag(2 * self.damping_ratio * 2 * np.pi * self.frequency_hz)
-
-    def frf(self, frequency) -> np.ndarray:
-        """Accelerance H[i, o] = a_o / F [(m/s^2)/N] at ``frequency[i]`` [Hz], time
-        dependence exp(+i omega t) (the convention of ``scipy.signal.csd``)."""
-        w = 2 * np.pi * np.asarray(frequency, float)[:, None]
-        wn = 2 * np.pi * self.frequency_hz[None, :]
-        if self.damping_matrix is None:
-            g = -w**2 * self.exciter_shape / (wn**2 - w**2 + 2j * self.damping_ratio * wn * w)
-            return g @ self.sensor_shapes.T
-        # C (i omega - A)^-1 B + D through the state matrix's eigenvectors (complex modes)
-        ss = self.state_space()
-        lam, V = np.linalg.eig(ss.A)
-        left, right = ss.C @ V, np.linalg.solve(V, ss.B[:, 0])
-        return (right / (1j * w - lam)) @ left.T + ss.D[:, 0]
-
-    def poles(self) -> tuple[np.ndarray, np.ndarray]:
-        """Natural frequency |s| / 2 pi [Hz] and damping ratio -Re(s) / |s| [-] of each
-        mode's pole s, in mode order. Modal damping: ``frequency_hz`` and ``damping_ratio``
-        themselves; a damping matrix: the state matrix's eigenvalues, each assigned to the
-        undamped mode that dominates its eigenvector."""
-        if self.damping_matrix is None:
-            return self.frequency_hz, self.damping_ratio
-        n = self.frequency_hz.size
-        s, V = np.linalg.eig(self.state_space().A)
-        upper = s.imag > 0
-        if upper.sum() != n:
-            raise ValueError(f"{n - upper.sum()} of {n} modes are overdamped; no pole pairs to list")
-        s, V = s[upper], V[:n, upper]
-        content = np.abs(V) ** 2 / np.sum(np.abs(V) ** 2, axis=0)  # (mode, pole)
-        mode, pole = scipy.optimize.linear_sum_assignment(-content)
-        s = s[pole[np.argsort(mode)]]
-        return np.abs(s) / (2 * np.pi), -s.real / np.abs(s)
-
-    def state_space(self) -> StateSpace:
-        """x = [q; q'] (modal), input the exciter force [N], outputs the sensors'
-        accelerations [m/s^2] (with the feed-through of the force)."""
-        n = self.frequency_hz.size
-        wn = 2 * np.pi * self.frequency_hz
-        if self.damping_matrix is None:
-            dyn = np.hstack([-np.diag(wn**2), -np.diag(2 * self.damping_ratio * wn)])  # q'' = dyn x + phi_e f
-        else:
-            dyn = np.hstack([-np.diag(wn**2), -self.damping_matrix])
-        A = np.vstack([np.hstack([np.zeros((n, n)), np.eye(n)]), dyn])
-        B = np.concatenate([np.zeros(n), self.exciter_shape])[:, None]
-        C = self.sensor_shapes @ dyn
-        D = (self.sensor_shapes @ self.exciter_shape)[:, None]
-        return StateSpace(A, B, C, D, tuple(s.name for s in SENSOR_GRID), (EXCITER.name,))
-
-    def listed(self, band: tuple[float, float]) -> np.ndarray:
-        """Indices of the physical modes with frequency in ``band`` [Hz]."""
-        f = self.frequency_hz
-        return np.flatnonzero((f >= band[0]) & (f <= band[1]) & (np.asarray(self.kind) != "residual"))
-
-
-def build_model(settings: ExcitationSettings = ExcitationSettings()) -> BoxModel:
-    return assemble(shinkansen_vehicle(order_increase=settings.order_change))
-
-
-def vertical_operators(model: BoxModel, sensors=SENSOR_GRID, exciter=EXCITER) -> tuple[np.ndarray, np.ndarray]:
-    """Rows giving what the sensors read (n_sensors, n_dof) (:data:`SENSOR_GRID` by
-    default) and the exciter's displacement along its direction (n_dof,); the exciter's
-    row is also the generalised force of a unit force there."""
-    return sensor_operator(model, sensors), sensor_operator(model, (exciter,))[0]
-
-
-def _rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
-    """Fraction of each mode's carbody motion that is a rigid-body motion (least-squares
-    fit of a + theta x r to the displacements at 9 points of every panel)."""
-    D, R = [], []
-    for pn in model.vehicle.panels:
-        for s in (-0.8, 0.0, 0.8):
-            for t in (-0.8, 0.0, 0.8):
-                r = np.asarray(pn.centre, float) + pn.axes[:, 0] * pn.a / 2 * s + pn.axes[:, 1] * pn.b / 2 * t
-                D.append(model.displacement(pn.name, r))
-                R.append(np.hstack([np.eye(3), [[0, r[2], -r[1]], [-r[2], 0, r[0]], [r[1], -r[0], 0]]]))
-    d = np.vstack(D) @ X
-    R = np.vstack(R)
-    fit = R @ np.linalg.lstsq(R, d, rcond=None)[0]
-    return np.sum(fit**2, axis=0) / np.sum(d**2, axis=0)
-
-
 def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
                 settings: ExcitationSettings = ExcitationSettings(), model: BoxModel | None = None,
                 sensors=SENSOR_GRID, exciter=EXCITER, residual_points=()) -> ModalModel:
-    """Modal model of the full box model at ``parameters`` (factors by name; missing ones
-    nominal 1): every mode up to ``settings.max_mode_hz`` and the residual pseudo-mode.
-
-    ``damping``: ratios of all those modes, pseudo-mode last (a truth file's
-    ``modes_kept.damping_ratios`` gives back exactly the simulated model). By default the
-    suspension estimate for rigid-body-on-suspension modes and the middle of
-    ``elastic_damping`` for elastic ones (the simulator draws these per seed).
-    ``model``: the assembled vehicle, built from ``settings`` when not given.
-    ``sensors``, ``exciter``: campaign sensors the shapes are taken at (default: this
-    simulator's grid and exciter).
-    ``residual_points``: further points (sensors: position and direction) where a load
-    acts; the static response of the omitted modes to the exciter force and to a unit load
-    at each of these spans the residual pseudo-modes (one per load, M- and K-orthogonal to
-    each other and to the kept modes, damping ``settings.residual_damping``), so a spring
-    attached there sees the full model's static flexibility."""
-    parameters = dict(parameters or {})
+    """The truth's modal model (:func:`calibration.models.box.modal.modal_model`) at
+    ``parameters`` (missing ones nominal 1), kept modes and damping from ``settings``; the
+    elastic modes get the middle of ``settings.elastic_damping`` unless ``damping`` gives
+    every ratio (a truth file's ``modes_kept.damping_ratios`` gives back exactly the
+    simulated model). ``model``: built from ``settings`` when not given."""
     names = PARAMETER_NAMES if model is None else model.names
-    unknown = sorted(set(parameters) - set(names))
+    unknown = sorted(set(parameters or {}) - set(names))
     if unknown:
         raise ValueError(f"unknown parameter(s) {', '.join(unknown)}; known: {', '.join(names)}")
-    model = build_model(settings) if model is None else model
-    p = np.array([float(parameters.get(n, 1.0)) for n in model.names])
-    n = min(150, model.n_dof - 2)
-    while True:
-        f, X = full_modes(model, p, n)
-        if f[-1] > settings.max_mode_hz or n == model.n_dof - 2:
-            break
-        n = min(n + 60, model.n_dof - 2)
-    keep = f <= settings.max_mode_hz
-    f, X = f[keep], X[:, keep]
-    w = 2 * np.pi * f
-    S, e = vertical_operators(model, sensors, exciter)
-    if residual_points:
-        loads = np.column_stack([e, *sensor_operator(model, residual_points)])
-        Psi = factorise(model.stiffness(p)).solve(loads) - X @ (X.T @ loads / w[:, None] ** 2)
-        k_psi = Psi.T @ loads  # = Psi^T K Psi, as X^T M Psi = 0
-        lam, Z = scipy.linalg.eigh((k_psi + k_psi.T) / 2, Psi.T @ (model.M @ Psi))
-        psi_hat, f_res = Psi @ Z, np.sqrt(lam) / (2 * np.pi)
-    else:
-        # residual pseudo-mode: static response of the omitted modes to the exciter force
-        psi = factorise(model.stiffness(p)).solve(e) - X @ (X.T @ e / w**2)
-        m_psi = psi @ (model.M @ psi)
-        psi_hat = psi / np.sqrt(m_psi)
-        f_res = np.sqrt((psi @ e) / m_psi) / (2 * np.pi)
-    n_res = np.size(f_res)
-    # kinds and the suspension's damping estimate
-    bogies = np.concatenate([np.arange(model.n_dof)[model.dof_slices[b.name]] for b in model.vehicle.bodies])
-    bogie_share = np.einsum("ij,ij->j", X[bogies], (model.M @ X)[bogies])
-    rigid = _rigid_share(model, X)
-    kind = tuple("bogie" if b > 0.5 else "carbody_rigid" if r > 0.95 else "elastic" for b, r in zip(bogie_share, rigid))
-    zeta_s = np.einsum("ij,ij->j", X, model.C @ X) / (2 * w)
-    zeta = np.append(np.where(np.array(kind) == "elastic", np.mean(settings.elastic_damping),
-                              np.clip(zeta_s, *settings.suspension_damping)), [settings.residual_damping] * n_res)
-    if damping is not None:
-        if len(damping) != zeta.size:
-            raise ValueError(f"damping has {len(damping)} ratios; the model keeps {zeta.size - n_res} modes and "
-                             f"{n_res} residual pseudo-mode(s) ({zeta.size})")
-        zeta = np.asarray(damping, float)
-    return ModalModel(
-        parameters={nm: float(v) for nm, v in zip(model.names, p)},
-        frequency_hz=np.append(f, f_res), damping_ratio=zeta,
-        kind=kind + ("residual",) * n_res, sensor_shapes=np.column_stack([S @ X, S @ psi_hat]),
-        exciter_shape=np.append(X.T @ e, psi_hat.T @ e), suspension_damping=np.append(zeta_s, [0.0] * n_res))
+    model = shinkansen_model(settings.order_change) if model is None else model
+    modal = ModalSettings(max_mode_hz=settings.max_mode_hz, elastic_damping=float(np.mean(settings.elastic_damping)),
+                          suspension_damping=settings.suspension_damping, residual_damping=settings.residual_damping)
+    return modal_model(model, parameters, sensors=sensors, exciter=exciter, damping=damping, settings=modal,
+                       residual_points=residual_points)
+
 
 
 # -------------------------------------------------------------------- hidden effects
@@ -421,11 +248,6 @@ def draw_bracket(rng: np.random.Generator, frequency_hz: float, exciter=EXCITER)
     far = [s.name for s in SENSOR_GRID
            if np.hypot(s.position[0] - exciter.position[0], s.position[1] - exciter.position[1]) >= BRACKET_CLEARANCE]
     return SensorBracket(far[int(rng.integers(len(far)))], frequency_hz, float(rng.uniform(*BRACKET_DAMPING)))
-
-
-def carbody_mass(model: BoxModel) -> float:
-    """Carbody mass [kg]: the panels' areal masses and the masses carried on them."""
-    return float(sum(pn.mass for pn in model.vehicle.panels) + sum(pm.mass for pm in model.vehicle.masses))
 
 
 def soften_panel(model: BoxModel, panel: str, divisor: float) -> BoxModel:
@@ -629,7 +451,7 @@ def truth_model(truth: Mapping, *, model: BoxModel | None = None) -> ModalModel:
     ``model``: the assembled vehicle without effect, built from the file's settings when
     not given."""
     settings = _settings_from_json(truth["settings"])
-    model = build_model(settings) if model is None else model
+    model = shinkansen_model(settings.order_change) if model is None else model
     effect = truth["effect"] or {}
     if effect.get("name") == "underfloor_equipment":
         equipment = UnderfloorEquipment(effect["equipment_mass_kg"], tuple(effect["position_m"]),
@@ -745,7 +567,7 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         parameters = draw_truth_parameters(settings, rng)
         if progress:
             progress("assembling the box model and solving its modes")
-        model = build_model(settings) if model is None else model
+        model = shinkansen_model(settings.order_change) if model is None else model
         effect_rng = np.random.default_rng([seed, EFFECT_STREAM])  # the effect's own draws
         name = None if effect is None else effect.spec.name
         truth_vehicle, mounts, bracket = model, (), None

@@ -348,3 +348,8 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
     model.M, model.C, model.K0 = M.matrix(), C.matrix(), K0.matrix()
     model.K_units = {k: v.matrix() for k, v in K_units.items()}
     return model
+
+
+def carbody_mass(model: BoxModel) -> float:
+    """Carbody mass [kg]: the panels' areal masses and the masses carried on them."""
+    return float(sum(pn.mass for pn in model.vehicle.panels) + sum(pm.mass for pm in model.vehicle.masses))

@@ -26,7 +26,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from .assembly import BoxVehicle, Joint, Link, PointMass, RigidBody, StiffnessParameter
+import numpy as np
+
+from ...data.errors import InputError
+from .assembly import BoxModel, BoxVehicle, Joint, Link, PointMass, RigidBody, StiffnessParameter, assemble
 from .panel import Panel
 
 
@@ -268,3 +271,39 @@ def shinkansen_vehicle(geometry: Geometry = Geometry(), orders: dict | None = No
 def free_carbody(vehicle: BoxVehicle) -> BoxVehicle:
     """The carbody alone, free in space (no bogies, no suspension): six rigid modes."""
     return replace(vehicle, bodies=(), links=())
+
+
+def shinkansen_model(order_change: int = 0) -> BoxModel:
+    """The assumed Shinkansen-type vehicle, assembled; ``order_change`` is added to every
+    panel order (negative: a coarse, fast model for tests)."""
+    return assemble(shinkansen_vehicle(order_increase=order_change))
+
+
+def calibrated_box_model(calibration: dict):
+    """The box model a calibration file describes and its factors: (model, {name: factor}),
+    the model assembled from the file's ``factor_set`` (files without one: grouped) at its
+    panel orders plus ``order_change`` (files without one: 0), every factor it does not name
+    nominal. InputError for an unknown set or factor, a factor that is not a positive
+    number, or an ``order_change`` that is not an integer."""
+    try:
+        factors = factor_set(calibration.get("factor_set"))
+    except ValueError as e:
+        raise InputError(str(e), key="factor_set") from None
+    params = calibration.get("parameters", {})
+    if not isinstance(params, dict):
+        raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", key="parameters")
+    unknown = sorted(set(params) - set(factors.names))
+    if unknown:
+        raise InputError(f"box parameter(s) {', '.join(unknown)} unknown to the {factors.name} factor set; known: "
+                         f"{', '.join(factors.names)}", key="parameters")
+    bad = [n for n, x in params.items()
+           if isinstance(x, bool) or not (isinstance(x, (int, float)) and np.isfinite(x) and x > 0)]
+    if bad:
+        raise InputError(f"box parameter(s) {', '.join(bad)} must be positive numbers", key="parameters")
+    order_change = calibration.get("order_change", 0)
+    lowest = 1 - min(min(o) for o in ORDERS.values())
+    if isinstance(order_change, bool) or not isinstance(order_change, int) or order_change < lowest:
+        raise InputError(f"'order_change' must be an integer >= {lowest} (every panel order >= 1), got "
+                         f"{order_change!r}", key="order_change")
+    model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
+    return model, {n: float(params.get(n, 1.0)) for n in model.names}

@@ -13,11 +13,11 @@ import sys
 import traceback
 from pathlib import Path
 
-from .data.campaign import open_campaign, read_input_file
-from .data.outputs import check_campaign_output, check_outputs, read_result, write_json_atomic, write_result
-from .data.errors import InputError
-from .models.parameters import CAR_PARAMETER_SPECS, ParameterError
-from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
+from calibration.data.campaign import open_campaign, read_input_file
+from calibration.data.outputs import check_campaign_output, check_outputs, read_result, write_result
+from calibration.data.errors import InputError
+from calibration.models.parameters import CAR_PARAMETER_SPECS, ParameterError
+from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
 
@@ -114,16 +114,16 @@ def _progress(args):
     """Messages and counted bars on stderr (calibration/progress.py); None with --quiet."""
     if getattr(args, "quiet", False):
         return None
-    from .progress import Progress
+    from calibration.progress import Progress
 
     return Progress()
 
 
 # ------------------------------------------------------------------------------ synth
 def cmd_synth_in_service(args) -> int:
-    from .truth.effects import parse_effect
-    from .truth.in_service import InServiceSettings, synth_in_service
-    from .truth.track import LineSpec
+    from calibration.truth.effects import parse_effect
+    from calibration.truth.in_service import InServiceSettings, synth_in_service
+    from calibration.truth.track import LineSpec
 
     effect = parse_effect(args.effect, "in_service")
     if args.journeys < 1:
@@ -142,8 +142,8 @@ def cmd_synth_in_service(args) -> int:
 
 
 def cmd_synth_excitation(args) -> int:
-    from .truth.effects import parse_effect
-    from .truth.excitation import ExcitationSettings, synth_excitation
+    from calibration.truth.effects import parse_effect
+    from calibration.truth.excitation import ExcitationSettings, synth_excitation
 
     effect = parse_effect(args.effect, "stationary_excitation")
     if args.runs < 1:
@@ -164,9 +164,9 @@ def cmd_synth_excitation(args) -> int:
 
 # --------------------------------------------------------------------------- identify
 def cmd_identify(args) -> int:
-    from .identification.fdd import FDDSettings
-    from .identification.in_service import IdentifySettings, identify_in_service
-    from .identification.plots import plot_identification, plot_spectra
+    from calibration.identification.fdd import FDDSettings
+    from calibration.identification.in_service import IdentifySettings, identify_in_service
+    from calibration.identification.plots import plot_identification, plot_spectra
 
     campaign = _open_campaign(args)
     png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
@@ -191,7 +191,7 @@ def cmd_identify(args) -> int:
 
 
 def _identify_excitation(campaign, args) -> int:
-    from .identification.excitation import identify_excitation, write_identification
+    from calibration.identification.excitation import identify_excitation, write_identification
 
     result = identify_excitation(campaign)
     out = write_identification(result, args.out, args.plot)
@@ -222,7 +222,7 @@ def cmd_modes(args) -> int:
     """Eigen-analysis of a model: every mode with a unique ``label`` and its spec v1
     ``family`` (``bogie_bounce_in_phase`` and ``bogie_bounce_anti_phase`` are both of
     family ``bogie_bounce``)."""
-    from .data.outputs import check_outputs, write_result
+    from calibration.data.outputs import check_outputs, write_result
 
     if args.model not in ("car2d", "box"):
         raise InputError(f"unknown model {args.model!r}; have: car2d, box", key="--model")
@@ -231,8 +231,8 @@ def cmd_modes(args) -> int:
     if args.model == "box":
         out = _box_modes(args)
     else:
-        from .models.car2d import build_car, damped_modes, undamped_modes
-        from .models.vehicles import VEHICLES
+        from calibration.models.car2d import build_car, damped_modes, undamped_modes
+        from calibration.models.vehicles import VEHICLES
 
         p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
         asm = build_car(p)
@@ -254,8 +254,8 @@ def cmd_modes(args) -> int:
 def _box_modes(args) -> dict:
     """``railcal modes --model box``: the box-type vehicle (default factor set) with
     ``--param NAME=FACTOR`` stiffness factors."""
-    from .calibrate_box import calibrated_box_model
-    from .models.vehicles import box_modes
+    from calibration.models.box.shinkansen import calibrated_box_model
+    from calibration.models.vehicles import box_modes
 
     factors = {}
     for item in args.param or []:
@@ -285,7 +285,7 @@ def cmd_calibrate(args) -> int:
         raise InputError("--method pso searches within a range for every parameter and there is no default "
                          "for the 2D car (the seed's Table 7 gives no range for J_v and J_b): give the ranges "
                          "with --priors P.toml ([NAME] nominal, low, high)", key="--priors")
-    from .calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
+    from calibration.calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
 
     if args.campaign is not None and args.priors is not None:
         raise InputError("a campaign brings its own [priors.NAME]; --priors goes with --targets", key="--priors")
@@ -323,8 +323,8 @@ def cmd_calibrate(args) -> int:
 
 
 def _calibrate_box(args) -> int:
-    from .calibrate_box import calibrate_box_campaign
-    from .optimisers.pso import PSOSettings
+    from calibration.calibrate_box import calibrate_box_campaign
+    from calibration.optimisers.pso import PSOSettings
 
     if args.method != "pso":
         raise InputError("the box model is calibrated by particle swarm (the RTRI seed's method): --method pso",
@@ -405,13 +405,13 @@ TYPED_REFINE_ROUNDS = 20
 def _calibrate_box_targets(args, settings, swarms: int):
     """Targets given by mode type and frequency: each paired by MAC with the type's floor
     pattern at the assumed accelerometer grid of the shaker test."""
-    from .calibrate import read_priors, read_targets
-    from .calibrate_box import box_search, calibrate_box
-    from .data.campaign import Prior
-    from .models.box import factor_set
-    from .models.box.mode_types import MODE_TYPES, typed_targets
-    from .models.box.shinkansen import Geometry
-    from .truth.excitation import SENSOR_GRID
+    from calibration.calibrate import read_priors, read_targets
+    from calibration.calibrate_box import box_search, calibrate_box
+    from calibration.data.campaign import Prior
+    from calibration.models.box import factor_set
+    from calibration.models.box.mode_types import MODE_TYPES, typed_targets
+    from calibration.models.box.shinkansen import Geometry
+    from calibration.models.box.rig import EXCITER, SENSOR_GRID
 
     try:
         factors = factor_set(args.factors or "credible")
@@ -425,7 +425,8 @@ def _calibrate_box_targets(args, settings, swarms: int):
     return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
                          factors=factors, progress=_progress(args),
                          min_mac=TYPED_MIN_MAC, log_factors=True, refine_rounds=TYPED_REFINE_ROUNDS,
-                         polish_steps=TYPED_POLISH_STEPS if args.refine else 0, swarms=swarms)
+                         polish_steps=TYPED_POLISH_STEPS if args.refine else 0, swarms=swarms,
+                         exciter=EXCITER)
 
 
 # --------------------------------------------------------------------------- validate
@@ -443,8 +444,8 @@ def _read_calibration(path) -> dict:
 
 
 def cmd_validate(args) -> int:
-    from .models.parameters import CarParameters
-    from .validation import plot_validation, validate
+    from calibration.models.parameters import CarParameters
+    from calibration.validation import plot_validation, validate
 
     path = Path(args.calibration)
     check_outputs([args.out, Path(args.out).with_suffix(".png")], inputs=[args.campaign, path])
@@ -470,8 +471,8 @@ def cmd_validate(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from .diagnosis.diagnose import diagnose
-    from .diagnosis.plots import plot_diagnosis
+    from calibration.diagnosis.diagnose import diagnose
+    from calibration.diagnosis.plots import plot_diagnosis
 
     campaign = _open_campaign(args)
     out_path = Path(args.out)
@@ -479,7 +480,7 @@ def cmd_diagnose(args) -> int:
     ends = ("_frf", "_mac") if campaign.meta.kind == "stationary_excitation" else ("_residual_psd", "_speed_map")
     check_outputs([out_path, *(stem.with_name(stem.name + e + ".png") for e in ends)], inputs=[args.campaign])
     if campaign.meta.kind == "stationary_excitation":
-        from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
+        from calibration.diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
 
         result = diagnose_stationary(campaign, progress=_progress(args))
         result["plots"] = [str(p) for p in plot_stationary_diagnosis(result, out_path.with_suffix(""))]
@@ -496,7 +497,7 @@ def cmd_diagnose(args) -> int:
 
 
 def _validate_excitation(campaign, calibration: dict, args) -> int:
-    from .frf_compare import compare_frf, plot_frf_comparison
+    from calibration.frf_compare import compare_frf, plot_frf_comparison
 
     if calibration.get("model") != "box":
         raise InputError("a stationary excitation test validates a box calibration (model = box)",
@@ -514,7 +515,7 @@ def _validate_excitation(campaign, calibration: dict, args) -> int:
 
 # ------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
-    from .demo import run_demo
+    from railcal.demo import run_demo
 
     out = Path(args.out)
     if os.path.lexists(out) and not out.is_dir():
@@ -550,9 +551,9 @@ def cmd_export_fmu(args) -> int:
 
 
 def cmd_crosscheck(args) -> int:
-    from reference_models.crosscheck import crosscheck_car
+    from railcal.crosscheck import crosscheck_car
 
-    from .models.parameters import CarParameters
+    from calibration.models.parameters import CarParameters
 
     calibration = _read_calibration(args.calibration)
     model = calibration.get("model", "car2d")
@@ -585,7 +586,7 @@ def cmd_crosscheck(args) -> int:
 
 
 def _track_for_crosscheck(args):
-    from .data.campaign import read_track_file
+    from calibration.data.campaign import read_track_file
 
     if args.track:
         rec = read_track_file(Path(args.track))
@@ -597,7 +598,7 @@ def _track_for_crosscheck(args):
 
 
 def _crosscheck_box(calibration: dict, args) -> int:
-    from reference_models.crosscheck import crosscheck_box
+    from railcal.crosscheck import crosscheck_box
 
     distance, level = _track_for_crosscheck(args)
     try:

@@ -21,7 +21,7 @@ from calibration.models.car2d import wheelset_positions
 from calibration.models.parameters import CarParameters
 from fmu_src.reference import car_reference, nrmse, spline_profile
 
-from .car2d import OUTPUTS, RailInput, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
+from reference_models.car2d import OUTPUTS, RailInput, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
 
 TOLERANCES = {"undamped_rel": 1e-6, "damped_rel": 1e-4, "nrmse": 1e-3}
 OUTPUT_INTERVAL = 1e-3  # [s]
@@ -124,27 +124,29 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
                    duration: float = 10.0, cutoff_hz: float = 60.0, with_fmu: bool = True) -> dict:
     """The box-type vehicle's cross-check (:mod:`reference_models.box`): frequencies below
     20 Hz of the exudyn build against railcal's reduced vehicle and the full box model, and the
-    27 floor accelerations over the track (no exciter force), exudyn against railcal's exact
+    floor accelerations over the track (no exciter force), exudyn against railcal's exact
     response of the reduced vehicle and the box FMU. exudyn integrates at 2e-4 s (about 0.7 s of
     wall time per simulated second at full order); its carbody modal data (about 10 s) are
     computed once for both exudyn systems. The reported wall time counts them, exudyn's
     items, static solution and integration, and railcal's exact response; it is not judged."""
-    from calibration.calibrate_box import calibrated_box_model
-    from calibration.truth.excitation import EXCITER, SENSOR_GRID
+    from calibration.models.box.rig import points_from_calibration
+    from calibration.models.box.shinkansen import calibrated_box_model
     from fmu_src.box import box_reduced, box_spec, calibrated_damping
     from fmu_src.reference import box_reference
 
-    from .box import (eigen_errors as box_eigen_errors, build_box_exudyn, carbody_modes, exudyn_frequencies,
+    from reference_models.box import (eigen_errors as box_eigen_errors, build_box_exudyn, carbody_modes, exudyn_frequencies,
                       full_frequencies, reduced_frequencies, simulate_box_exudyn)
 
     distance, level = np.asarray(distance, float), np.asarray(level, float)
     model, p = calibrated_box_model(calibration)  # the file's factor set; parameters checked (exit 2 on bad ones)
-    reduced = box_reduced(calibration, cutoff_hz, model=(model, p))
+    sensors, exciter = points = points_from_calibration(calibration)
+    reduced = box_reduced(calibration, cutoff_hz, model=(model, p), points=points)
     zeta = calibrated_damping(calibration)
     t0 = time.perf_counter()
-    modes = carbody_modes(model.vehicle, p, cutoff_hz, SENSOR_GRID, EXCITER)  # exudyn's flexible body, once
+    modes = carbody_modes(model.vehicle, p, cutoff_hz, sensors, exciter)  # exudyn's flexible body, once
     t_modes = time.perf_counter() - t0
-    mbs, _ = build_box_exudyn(model, p, cutoff_hz=cutoff_hz, zeta=zeta, modes=modes)
+    mbs, _ = build_box_exudyn(model, p, cutoff_hz=cutoff_hz, zeta=zeta, sensors=sensors, exciter=exciter,
+                              modes=modes)
     ex, red, full = exudyn_frequencies(mbs), reduced_frequencies(reduced), full_frequencies(model, p)
     e_red, e_full = box_eigen_errors(red, ex), box_eigen_errors(full, ex)
     tol = 1e-4
@@ -160,7 +162,7 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
         raise ValueError(f"the track ({distance[0]:.1f}-{distance[-1]:.1f} m) is too short for the vehicle")
     t0 = time.perf_counter()
     res = simulate_box_exudyn(model, p, duration=duration, rail=RailInput(distance, level, speed, start),
-                              cutoff_hz=cutoff_hz, zeta=zeta, modes=modes)
+                              cutoff_hz=cutoff_hz, zeta=zeta, sensors=sensors, exciter=exciter, modes=modes)
     t1 = time.perf_counter()
     ref = box_reference(reduced, zeta, spline_profile(distance, level), speed, res.t, np.zeros(res.t.size),
                         start=start)
@@ -177,7 +179,8 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
             track = Path(tmp) / "track.csv"
             np.savetxt(track, np.column_stack([distance, level]), delimiter=",", header="distance,level",
                        comments="", fmt="%.17g")
-            built = build_fmu(box_spec(calibration, reduced=reduced, track=track), 2, Path(tmp) / "box.fmu",
+            built = build_fmu(box_spec(calibration, reduced=reduced, track=track, points=points), 2,
+                              Path(tmp) / "box.fmu",
                               platforms=("linux64",))
             out = fmpy.simulate_fmu(str(built.path), stop_time=float(res.t[-1]), step_size=OUTPUT_INTERVAL,
                                     output_interval=OUTPUT_INTERVAL, output=list(res.sensors),

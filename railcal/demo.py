@@ -24,23 +24,24 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibrate import calibrate_car, mode_uncertainties, search_from_priors
-from .calibrate_box import calibrate_box_campaign
-from .data.campaign import open_campaign
-from .data.outputs import write_atomic, write_json_atomic, write_result
-from .diagnosis.stationary import StationarySettings
-from .frf_compare import compare_frf, plot_frf_comparison
-from .identification.excitation import write_identification
-from .models.box.fit import mac_matrix
-from .identification.in_service import RIGID_LABELS, identify_in_service, prior_parameters
-from .identification.plots import plot_identification, plot_spectra
-from .optimisers.pso import PSOSettings
-from .progress import counter
-from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
-from .truth.excitation import ExcitationSettings, build_model, synth_excitation
-from .truth.in_service import InServiceSettings, synth_in_service
-from .truth.track import LineSpec
-from .validation import plot_validation, validate
+from calibration.calibrate import calibrate_car, mode_uncertainties, search_from_priors
+from calibration.calibrate_box import calibrate_box_campaign
+from calibration.data.campaign import open_campaign
+from calibration.data.outputs import write_atomic, write_json_atomic, write_result
+from calibration.diagnosis.stationary import StationarySettings
+from calibration.frf_compare import compare_frf, plot_frf_comparison
+from calibration.identification.excitation import write_identification
+from calibration.models.box.fit import mac_matrix
+from calibration.identification.in_service import RIGID_LABELS, identify_in_service, prior_parameters
+from calibration.identification.plots import plot_identification, plot_spectra
+from calibration.optimisers.pso import PSOSettings
+from calibration.progress import counter
+from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
+from calibration.models.box.shinkansen import shinkansen_model
+from calibration.truth.excitation import ExcitationSettings, synth_excitation
+from calibration.truth.in_service import InServiceSettings, synth_in_service
+from calibration.truth.track import LineSpec
+from calibration.validation import plot_validation, validate
 
 DEMO_SEED = 7
 
@@ -138,7 +139,7 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     say("9/11 exporting FMUs of the calibrated car and box-type vehicle, running them in fmpy")
     fmus = _fmus(out, campaign, calibration.parameters, shaker["calibration_json"])
     say("10/11 cross-checking the calibrated car in exudyn against railcal's model and its FMU")
-    from reference_models.crosscheck import crosscheck_car
+    from railcal.crosscheck import crosscheck_car
 
     track = campaign.tracks()[0]
     xcheck = crosscheck_car(calibration.parameters, track.distance, track.level, speed=40.0, duration=5.0,
@@ -200,8 +201,8 @@ def _checks_report(checks: list[tuple[str, bool]]) -> str:
 def _diagnose(out: Path, campaign, truth: dict, progress) -> dict:
     import time
 
-    from .diagnosis.diagnose import diagnose
-    from .diagnosis.plots import plot_diagnosis
+    from calibration.diagnosis.diagnose import diagnose
+    from calibration.diagnosis.plots import plot_diagnosis
 
     t0 = time.perf_counter()
     result = diagnose(campaign, progress=progress)
@@ -233,7 +234,7 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
     say("6/11 synthesising a stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
     excitation = demo.excitation
     # the effect-free box model: the truth simulator's, the calibration's and the diagnosis's
-    model = build_model(excitation)
+    model = shinkansen_model(excitation.order_change)
     truth = synth_excitation(root, seed=DEMO_SEED, settings=excitation, model=model,
                              overwrite=True)  # a rerun replaces its own test
     campaign = open_campaign(root)
@@ -263,7 +264,7 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
 
 
 def _diagnose_shaker(out: Path, campaign, truth: dict, progress, settings: StationarySettings, model) -> dict:
-    from .diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
+    from calibration.diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
 
     result = diagnose_stationary(campaign, progress=progress, settings=settings, model=model)
     result["wall_time_s"] = result["wall_s"]
