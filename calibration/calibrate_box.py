@@ -19,13 +19,14 @@ from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
 from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
-from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, mac_matrix, sensor_operator
+from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, sensor_operator
 from .models.box.rig import point_record
 from .models.box.shinkansen import GROUPED_RANGE
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
 from .progress import counter
+from .signals.modal import mac_matrix
 from .swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
 
 DEFAULT_RANGE = GROUPED_RANGE  # stiffness factors, when the campaign gives no priors

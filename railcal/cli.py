@@ -445,7 +445,8 @@ def _read_calibration(path) -> dict:
 
 def cmd_validate(args) -> int:
     from calibration.models.parameters import CarParameters
-    from calibration.validation import plot_validation, validate
+    from calibration.validation.in_service import validate
+    from calibration.validation.plots import plot_validation
 
     path = Path(args.calibration)
     check_outputs([args.out, Path(args.out).with_suffix(".png")], inputs=[args.campaign, path])
@@ -497,7 +498,8 @@ def cmd_diagnose(args) -> int:
 
 
 def _validate_excitation(campaign, calibration: dict, args) -> int:
-    from calibration.frf_compare import compare_frf, plot_frf_comparison
+    from calibration.validation.excitation import compare_frf
+    from calibration.validation.plots import plot_frf_comparison
 
     if calibration.get("model") != "box":
         raise InputError("a stationary excitation test validates a box calibration (model = box)",

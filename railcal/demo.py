@@ -29,9 +29,9 @@ from calibration.calibrate_box import calibrate_box_campaign
 from calibration.data.campaign import open_campaign
 from calibration.data.outputs import write_atomic, write_json_atomic, write_result
 from calibration.diagnosis.stationary import StationarySettings
-from calibration.frf_compare import compare_frf, plot_frf_comparison
+from calibration.validation.excitation import compare_frf
 from calibration.identification.excitation import write_identification
-from calibration.models.box.fit import mac_matrix
+from calibration.signals.modal import mac_matrix
 from calibration.identification.in_service import RIGID_LABELS, identify_in_service, prior_parameters
 from calibration.identification.plots import plot_identification, plot_spectra
 from calibration.optimisers.pso import PSOSettings
@@ -41,7 +41,8 @@ from calibration.models.box.shinkansen import shinkansen_model
 from calibration.truth.excitation import ExcitationSettings, synth_excitation
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
-from calibration.validation import plot_validation, validate
+from calibration.validation.in_service import validate
+from calibration.validation.plots import plot_frf_comparison, plot_validation
 
 DEMO_SEED = 7
 

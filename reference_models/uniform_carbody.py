@@ -76,6 +76,7 @@ from scipy.spatial.transform import Rotation
 
 from calibration.models.box.assembly import assemble
 from calibration.models.box.shinkansen import Geometry, free_carbody, shinkansen_vehicle
+from calibration.signals.modal import mac_matrix
 
 N_RIGID = 6
 
@@ -450,12 +451,6 @@ def lattice_modes(shell: UniformShell, settings: LatticeSettings = LatticeSettin
 
 
 # ----------------------------------------------------------------------------- pairing
-def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """MAC matrix between rows of a and rows of b."""
-    num = np.abs(a @ b.T) ** 2
-    return num / np.outer(np.sum(a * a, 1), np.sum(b * b, 1))
-
-
 def mode_name(shape: np.ndarray, points: np.ndarray, geometry: Geometry) -> str:
     """A coarse type: vertical / lateral bending (node count), torsion, or cross-section
     (breathing/distortion), from how the section's mean motion and twist vary along x."""
@@ -499,7 +494,7 @@ def compare(shell: UniformShell = UniformShell(), settings: LatticeSettings = La
     (among its first ``n_search``) of largest MAC."""
     lat = lattice_modes(shell, settings, n_search)
     box = box_modes(shell, lat.points, n_search, **vehicle_options)
-    A = mac(box.shapes, lat.shapes)
+    A = mac_matrix(box.shapes.T, lat.shapes.T)  # shapes are rows here
     pairs = []
     for i in range(n_modes):
         j = int(np.argmax(A[i]))

@@ -25,7 +25,8 @@ import numpy as np
 
 from calibration.calibrate_box import calibrate_box_campaign
 from calibration.data.campaign import open_campaign
-from calibration.models.box.fit import mac_matrix, select_targets
+from calibration.models.box.fit import select_targets
+from calibration.signals.modal import mac_matrix
 from calibration.optimisers.pso import PSOSettings
 from calibration.truth.excitation import synth_excitation, truth_modes
 

@@ -26,7 +26,7 @@ from calibration.identification.in_service import identify_in_service, prior_par
 from calibration.models.parameters import CarParameters
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
-from calibration.validation import STEP_M, _bandpass_distance, validate
+from calibration.validation.in_service import STEP_M, _bandpass_distance, validate
 
 QUIET = dict(axle_acc_noise=0.0, bogie_acc_noise=0.0, gyro_noise_raw=0.0, gps_error=0.0, gps_jitter=0.0,
              speed_noise=0.0, recording_noise=0.0)

@@ -15,8 +15,9 @@ from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.excitation import ShakerMode, identify_excitation
 from calibration.box_refine import polish_box
+from calibration.signals.modal import mac_matrix
 from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass_matrix,
-                                        mac_matrix, select_targets, sensor_operator)
+                                        select_targets, sensor_operator)
 from calibration.models.box.reduced import full_modes
 from calibration.models.box.mode_types import MODE_TYPES, template
 from calibration.optimisers.pso import PSOSettings

@@ -8,7 +8,8 @@ import scipy.sparse.linalg
 
 from calibration.models.box import assemble, factor_set, shinkansen_vehicle
 from calibration.models.box.factor import factorise
-from calibration.models.box.fit import band_pairing, mac_matrix
+from calibration.models.box.fit import band_pairing
+from calibration.signals.modal import mac_matrix
 from calibration.models.box.reduced import full_modes
 
 

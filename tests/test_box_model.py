@@ -227,10 +227,10 @@ def test_the_assembled_matrices_store_no_zeros(carbody):
 
 # ---------------------------------------------------------------- the carbody's modal basis
 def test_the_inertia_count_is_the_number_of_modes_below_the_cut_off(carbody):
-    from calibration.models.box.reduction import modes_below
+    from calibration.signals.modal import count_modes_below
     f = _frequencies(carbody, n=60)
     for cutoff in (5.0, 25.0, 0.5 * (f[40] + f[41])):
-        assert modes_below(carbody.stiffness(np.ones(len(carbody.names))), carbody.M, cutoff) == \
+        assert count_modes_below(carbody.stiffness(np.ones(len(carbody.names))), carbody.M, cutoff) == \
             np.count_nonzero(f < cutoff)
 
 

@@ -12,8 +12,9 @@ import scipy.signal
 from threadpoolctl import threadpool_limits
 
 from calibration.identification.excitation import ShakerSettings
-from calibration.identification.ema import (FRFEstimate, Mode, auto_mac, frf_h1, lscf, mac, mode_shapes, mpc,
-                                            peak_picking, plot_mac, plot_stabilisation)
+from calibration.identification.ema import FRFEstimate, Mode, frf_h1, lscf, mode_shapes, mpc, peak_picking
+from calibration.identification.plots import plot_mac, plot_stabilisation
+from calibration.signals.modal import mac_matrix
 
 F_N = np.array([9.2, 11.5, 13.4, 15.8, 16.2, 18.5])  # [Hz]
 ZETA = np.array([0.020, 0.015, 0.025, 0.010, 0.012, 0.030])
@@ -105,7 +106,7 @@ def test_lsfd_shapes_and_synthesis_match_the_truth(exact):
     f, H = exact
     truth = [Mode(fn, z) for fn, z in zip(F_N, ZETA)]
     fit = mode_shapes(f, H, truth, BAND)
-    assert np.diag(mac(fit.shapes, PHI)) == pytest.approx(1.0, abs=1e-6)
+    assert np.diag(mac_matrix(fit.shapes, PHI)) == pytest.approx(1.0, abs=1e-6)
     assert np.max(np.abs(fit.shapes)) == pytest.approx(1.0)
     assert np.allclose(fit.shapes[np.argmax(np.abs(fit.shapes), axis=0), range(6)], 1.0)
     assert fit.relative_error.max() < 1e-6
@@ -139,8 +140,8 @@ def test_lscf_on_noisy_h1_finds_frequencies_within_half_a_percent_and_shapes(sha
     for r, (m, fn, z) in enumerate(zip(found, F_N, ZETA)):
         assert m.frequency_hz == pytest.approx(fn, rel=5e-3)
         assert m.damping_ratio == pytest.approx(z, rel=0.15)  # Hann leakage raises it a little
-        assert mac(fit.shapes[:, r], PHI[:, r])[0, 0] >= 0.95
-        assert mac(m.shape, PHI[:, r])[0, 0] >= 0.95  # the numerator shape of the diagram
+        assert mac_matrix(fit.shapes[:, r], PHI[:, r])[0, 0] >= 0.95
+        assert mac_matrix(m.shape, PHI[:, r])[0, 0] >= 0.95  # the numerator shape of the diagram
     assert fit.relative_error.max() < 0.1
 
 
@@ -176,15 +177,15 @@ def test_a_pair_a_seventh_of_its_bandwidth_apart_is_kept_apart_by_shape(pair_tes
     one-exciter test; a second exciter position is the remedy."""
     modes = _shaker_modes(pair_test)
     for m in modes:  # never a merged cluster: each mode found is one true mode, its frequency and shape
-        r = max(range(PAIR_F.size), key=lambda r: mac(m.shape, PAIR_PHI[:, r])[0, 0])
+        r = max(range(PAIR_F.size), key=lambda r: mac_matrix(m.shape, PAIR_PHI[:, r])[0, 0])
         assert m.frequency_hz == pytest.approx(PAIR_F[r], rel=2e-3)
-        assert mac(m.shape, PAIR_PHI[:, r])[0, 0] >= (0.8 if r in (1, 2) else 0.99)
+        assert mac_matrix(m.shape, PAIR_PHI[:, r])[0, 0] >= (0.8 if r in (1, 2) else 0.99)
     assert len(modes) == PAIR_F.size, f"found {[round(m.frequency_hz, 3) for m in modes]}"
     for r, fn in enumerate(PAIR_F):
-        m = max(modes, key=lambda m: mac(m.shape, PAIR_PHI[:, r])[0, 0])
+        m = max(modes, key=lambda m: mac_matrix(m.shape, PAIR_PHI[:, r])[0, 0])
         assert m.frequency_hz == pytest.approx(fn, rel=2e-3)
     lower, upper = sorted(modes, key=lambda m: m.frequency_hz)[1:3]
-    assert mac(lower.shape, upper.shape)[0, 0] < 0.5  # two shapes, not one seen twice
+    assert mac_matrix(lower.shape, upper.shape)[0, 0] < 0.5  # two shapes, not one seen twice
 
 
 # Far below the identification error (0.01-0.2 % in frequency, 0.01-0.4 in shape entries
@@ -248,7 +249,7 @@ def test_peak_picking_finds_the_separated_modes_and_merges_the_close_pair(exact,
         for r in SEPARATED:
             m = match(modes)[r]
             assert m.frequency_hz == pytest.approx(F_N[r], rel=5e-3)
-            assert mac(m.shape, PHI[:, r])[0, 0] >= 0.95
+            assert mac_matrix(m.shape, PHI[:, r])[0, 0] >= 0.95
         close = [m for m in modes if 15.5 <= m.frequency_hz <= 16.5]
         assert len(close) == 1  # one peak for 15.8 and 16.2 Hz: the baseline's limit
     assert SEPARATED.tolist() == [0, 1, 2]
@@ -270,12 +271,12 @@ def test_mac_is_one_for_identical_zero_for_orthogonal_and_blind_to_complex_scale
     a = rng.standard_normal(20) + 1j * rng.standard_normal(20)
     b = rng.standard_normal(20)
     b_orth = b - (a.conj() @ b) / (a.conj() @ a) * a
-    assert mac(a, a)[0, 0] == pytest.approx(1.0)
-    assert mac(a, b_orth)[0, 0] == pytest.approx(0.0, abs=1e-14)
-    assert mac(a * (0.3 - 2.1j), b)[0, 0] == pytest.approx(mac(a, b)[0, 0])
+    assert mac_matrix(a, a)[0, 0] == pytest.approx(1.0)
+    assert mac_matrix(a, b_orth)[0, 0] == pytest.approx(0.0, abs=1e-14)
+    assert mac_matrix(a * (0.3 - 2.1j), b)[0, 0] == pytest.approx(mac_matrix(a, b)[0, 0])
     q = np.linalg.qr(rng.standard_normal((20, 6)))[0]
-    assert auto_mac(q) == pytest.approx(np.eye(6), abs=1e-14)
-    assert mac(q, q[:, :3]).shape == (6, 3)
+    assert mac_matrix(q, q) == pytest.approx(np.eye(6), abs=1e-14)
+    assert mac_matrix(q, q[:, :3]).shape == (6, 3)
 
 
 # ---------------------------------------------------------------- figures
@@ -288,7 +289,7 @@ def test_figures_are_written_whole(exact, tmp_path):
     p1 = plot_stabilisation(stab, f, H, tmp_path / "figs" / "stab.png", modes=modes)
     fit = mode_shapes(f, H, modes, BAND)
     labels = [f"{m.frequency_hz:.2f} Hz" for m in modes]
-    p2 = plot_mac(auto_mac(fit.shapes), labels, labels, tmp_path / "figs" / "mac.png")
+    p2 = plot_mac(mac_matrix(fit.shapes, fit.shapes), labels, labels, tmp_path / "figs" / "mac.png")
     for p in (p1, p2):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(x.name for x in (tmp_path / "figs").iterdir()) == ["mac.png", "stab.png"]
@@ -318,4 +319,4 @@ def test_bad_input_raises_naming_the_problem(exact):
     with pytest.raises(ValueError, match="stable and oscillatory"):
         mode_shapes(f, H, np.array([0.1 + 60j]), BAND)
     with pytest.raises(ValueError, match="shapes have 20 and 19 entries"):
-        mac(PHI, PHI[1:])
+        mac_matrix(PHI, PHI[1:])

@@ -13,8 +13,9 @@ Pipeline (pure functions of arrays; results are frozen objects made once):
    frequency-domain (LSFD) fitting with lower and upper residual terms.
 4. :func:`peak_picking` is the baseline: peaks of sum_o |H_o|^2, half-power damping,
    shapes from the quadrature (imaginary) response.
-5. :func:`mac` / :func:`auto_mac` compare shapes; :func:`plot_stabilisation` and
-   :func:`plot_mac` draw the two usual figures.
+5. :func:`mpc` measures a complex shape's phase collinearity; shapes are compared by
+   :func:`calibration.signals.modal.mac_matrix`, and the two usual figures are drawn by
+   :mod:`calibration.identification.plots`.
 
 Sign convention: time dependence exp(+i omega t), poles lambda = -zeta omega_n + i omega_d
 with omega_d > 0; one pole of every complex-conjugate pair is reported. Frequencies in Hz,
@@ -32,6 +33,7 @@ import scipy.cluster.hierarchy
 import scipy.signal
 import scipy.spatial.distance
 
+from ..signals.modal import mac_matrix
 from ..signals.peaks import parabolic_shift
 
 Quantity = Literal["displacement", "velocity", "acceleration"]
@@ -145,7 +147,7 @@ class Stabilisation:
         else:
             tol = np.maximum(cluster_tol, bandwidth_fraction * 0.5 * (zeta[:, None] + zeta[None, :]))
             d_f = np.abs(f[:, None] - f[None, :]) / (tol * 0.5 * (f[:, None] + f[None, :]))
-            d = np.maximum(d_f, (1.0 - mac(shapes, shapes)) / (1.0 - cluster_mac))
+            d = np.maximum(d_f, (1.0 - mac_matrix(shapes, shapes)) / (1.0 - cluster_mac))
             d[order[:, None] == order[None, :]] = 1e6  # one pole per order and mode
             np.fill_diagonal(d, 0.0)
             tree = scipy.cluster.hierarchy.linkage(scipy.spatial.distance.squareform(d, checks=False), "average")
@@ -161,7 +163,7 @@ class Stabilisation:
             if len(best) < min_fraction * len(self.orders):
                 continue
             sel = np.array(sorted(best.values()))
-            rep = sel[int(np.argmax(mac(shapes[:, sel], shapes[:, sel]).sum(axis=1)))]
+            rep = sel[int(np.argmax(mac_matrix(shapes[:, sel], shapes[:, sel]).sum(axis=1)))]
             if mpc(shapes[:, rep]) < min_mpc:
                 continue
             modes.append(Mode(float(np.median(f[sel])), float(np.median(zeta[sel])), shapes[:, rep], int(sel.size)))
@@ -260,7 +262,7 @@ def frf_h1_records(records, fs: float, nperseg: int, noverlap: int | None = None
 # --------------------------------------------------------------------------- helpers
 
 
-def _in_band(frequency, H, band, weights=None, min_lines: int = 8):
+def band_lines(frequency, H, band, weights=None, min_lines: int = 8):
     """Validated band selection: f (n_b,), H (n_b, n_out), weights (n_b, n_out)."""
     f = np.asarray(frequency, float)
     H = np.asarray(H)
@@ -307,25 +309,7 @@ def _eigenvalues(poles) -> np.ndarray:
     return lam
 
 
-# --------------------------------------------------------------------------- MAC
-
-
-def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion between the columns of ``phi_a`` (n, n_a) and ``phi_b``
-    (n, n_b): MAC_ij = |a_i^H b_j|^2 / ((a_i^H a_i)(b_j^H b_j)), in [0, 1], invariant to
-    complex scaling of either shape (Allemang & Brown, Proc. 1st IMAC, 1982). 1-D inputs
-    are single shapes."""
-    a = np.asarray(phi_a)
-    b = np.asarray(phi_b)
-    a = a[:, None] if a.ndim == 1 else a
-    b = b[:, None] if b.ndim == 1 else b
-    if a.shape[0] != b.shape[0]:
-        raise ValueError(f"shapes have {a.shape[0]} and {b.shape[0]} entries; they must match")
-    num = np.abs(a.conj().T @ b) ** 2
-    den = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
-    if np.any(den == 0):
-        raise ValueError("a mode shape is all zeros")
-    return num / den
+# --------------------------------------------------------------------------- MPC
 
 
 def mpc(phi: np.ndarray) -> float:
@@ -340,11 +324,6 @@ def mpc(phi: np.ndarray) -> float:
     if total == 0:
         raise ValueError("a mode shape is all zeros")
     return float(((sxx - syy) ** 2 + 4 * sxy ** 2) / total ** 2)
-
-
-def auto_mac(phi: np.ndarray) -> np.ndarray:
-    """MAC of the columns of ``phi`` with each other (n_modes, n_modes)."""
-    return mac(phi, phi)
 
 
 # --------------------------------------------------------------------------- p-LSCF
@@ -424,7 +403,7 @@ def lscf(frequency: np.ndarray, H: np.ndarray, band: tuple[float, float], orders
     orders = [int(p) for p in orders]
     if not orders or min(orders) < 2:
         raise ValueError(f"orders must be a non-empty list of integers >= 2, got {orders}")
-    f, Hb, W = _in_band(frequency, H, band, weights)
+    f, Hb, W = band_lines(frequency, H, band, weights)
     n_out = Hb.shape[1]
     common = W is None or np.allclose(W, W[:, :1])  # one numerator Gram matrix for all outputs
     W2 = np.ones((f.size, 1)) if W is None else (W[:, :1] ** 2 if common else W ** 2)
@@ -465,7 +444,7 @@ def lscf(frequency: np.ndarray, H: np.ndarray, band: tuple[float, float], orders
             j = np.argmin(np.abs(fn[:, None] - prev.frequency_hz[None, :]), axis=1)
             sf = np.abs(fn - prev.frequency_hz[j]) <= freq_tol * fn
             sd = np.abs(zeta - prev.damping_ratio[j]) <= damping_tol * zeta
-            sv = np.einsum("ii->i", mac(shapes, prev.shapes[:, j])) >= mac_min
+            sv = np.einsum("ii->i", mac_matrix(shapes, prev.shapes[:, j])) >= mac_min
         prev = OrderPoles(p, fn, zeta, shapes, sf, sd, sv)
         result.append(prev)
     return Stabilisation((float(band[0]), float(band[1])), tuple(result), freq_tol, damping_tol, mac_min,
@@ -499,7 +478,7 @@ def mode_shapes(frequency: np.ndarray, H: np.ndarray, poles, band: tuple[float, 
     if quantity not in _DERIVATIVE:
         raise ValueError(f"quantity must be one of {sorted(_DERIVATIVE)}, got {quantity!r}")
     lam = _eigenvalues(poles)
-    f, Hb, W = _in_band(frequency, H, band, weights)
+    f, Hb, W = band_lines(frequency, H, band, weights)
     n_out, m = Hb.shape[1], lam.size
     w0 = np.pi * (f[0] + f[-1])  # centre of the band [rad/s]
     s = 1j * 2 * np.pi * f / w0
@@ -560,7 +539,7 @@ def peak_picking(frequency: np.ndarray, H: np.ndarray, band: tuple[float, float]
         raise ValueError(f"min_separation_hz must be > 0, got {min_separation_hz}")
     if quantity not in _DERIVATIVE:
         raise ValueError(f"quantity must be one of {sorted(_DERIVATIVE)}, got {quantity!r}")
-    f, Hb, _ = _in_band(frequency, H, band)
+    f, Hb, _ = band_lines(frequency, H, band)
     df = float(np.median(np.diff(f)))
     ind = np.sum(np.abs(Hb) ** 2, axis=1)
     db = 10 * np.log10(np.maximum(ind, np.finfo(float).tiny))
@@ -597,62 +576,3 @@ def _half_power(f, ind, k):
             j += step
         out.append(found)
     return out[0], out[1]
-
-
-# --------------------------------------------------------------------------- figures
-
-
-def plot_stabilisation(stab: Stabilisation, frequency: np.ndarray, H: np.ndarray, path, *,
-                       modes: Sequence[Mode] | None = None):
-    """Stabilisation diagram over sum_o |H_o|^2 (dB, right axis): every kept pole by order,
-    marked not stable (o), stable in frequency (.), frequency and damping (x), or all
-    including shape (filled circle); vertical lines at ``modes``. Written atomically to
-    ``path`` (temporary file in the same folder, then ``os.replace``)."""
-    from .plots import plt, save_figure  # Agg backend, temporary file then os.replace
-
-    f, Hb, _ = _in_band(frequency, H, stab.band, min_lines=2)
-    fig, ax = plt.subplots(figsize=(10, 5.5))
-    styles = [("not stable", {"marker": "o", "mfc": "none", "color": "0.6", "ms": 4}),
-              ("frequency", {"marker": ".", "color": "tab:blue", "ms": 5}),
-              ("frequency + damping", {"marker": "x", "color": "tab:orange", "ms": 5}),
-              ("frequency + damping + shape", {"marker": "o", "color": "tab:green", "ms": 4})]
-    for level, (label, st) in enumerate(styles):
-        xs, ys = [], []
-        for op in stab.orders:
-            sf_sd = op.stable_frequency & op.stable_damping
-            sel = op.stable_frequency.astype(int) + sf_sd + op.stable == level
-            xs.extend(op.frequency_hz[sel])
-            ys.extend([op.order] * int(sel.sum()))
-        ax.plot(xs, ys, ls="none", label=label, **st)
-    for m in modes or ():
-        ax.axvline(m.frequency_hz, color="k", lw=0.8, ls="--")
-    ax.set_xlim(stab.band)
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("model order")
-    ax.legend(fontsize=8, loc="upper left")
-    ax2 = ax.twinx()
-    ax2.plot(f, 10 * np.log10(np.maximum(np.sum(np.abs(Hb) ** 2, axis=1), np.finfo(float).tiny)), color="k", lw=1)
-    ax2.set_ylabel("sum of |H|^2 [dB]")
-    ax.set_title(f"p-LSCF stabilisation (df {100 * stab.freq_tol:g} %, dzeta {100 * stab.damping_tol:g} %, "
-                 f"MAC >= {stab.mac_min:g})")
-    fig.tight_layout()
-    return save_figure(fig, path)
-
-
-def plot_mac(matrix: np.ndarray, labels_a: Sequence[str], labels_b: Sequence[str], path):
-    """MAC matrix as a grey-scale image with the values written in; rows ``labels_a``,
-    columns ``labels_b``. Written atomically to ``path``."""
-    from .plots import plt, save_figure
-
-    matrix = np.asarray(matrix, float)
-    if matrix.shape != (len(labels_a), len(labels_b)):
-        raise ValueError(f"MAC matrix {matrix.shape} does not match {len(labels_a)} x {len(labels_b)} labels")
-    fig, ax = plt.subplots(figsize=(1.2 + 0.6 * len(labels_b), 1.0 + 0.6 * len(labels_a)))
-    ax.imshow(matrix, cmap="Greys", vmin=0, vmax=1)
-    for (i, j), v in np.ndenumerate(matrix):
-        ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
-    ax.set_xticks(range(len(labels_b)), labels_b, rotation=45, ha="right", fontsize=8)
-    ax.set_yticks(range(len(labels_a)), labels_a, fontsize=8)
-    ax.set_title("MAC")
-    fig.tight_layout()
-    return save_figure(fig, path)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.errors import InputError
+from ..signals.modal import mac_matrix
 from . import ema
 
 
@@ -70,7 +71,10 @@ class ShakerIdentification:
     settings: ShakerSettings = field(repr=False, default_factory=ShakerSettings)
 
     def auto_mac(self) -> np.ndarray:
-        return ema.auto_mac(np.column_stack([m.shape for m in self.modes])) if self.modes else np.zeros((0, 0))
+        if not self.modes:
+            return np.zeros((0, 0))
+        shapes = np.column_stack([m.shape for m in self.modes])
+        return mac_matrix(shapes, shapes)
 
     def to_json(self) -> dict:
         return {
@@ -156,13 +160,14 @@ def write_identification(result: ShakerIdentification, out, plot=None) -> dict:
     from pathlib import Path
 
     from ..data.outputs import write_json_atomic
+    from .plots import plot_mac, plot_stabilisation
 
     data = result.to_json()
     png = Path(plot) if plot else Path(out).with_suffix(".png")
-    ema.plot_stabilisation(result.stabilisation, result.frf.frequency, result.frf.H, png, modes=list(result.modes))
+    plot_stabilisation(result.stabilisation, result.frf.frequency, result.frf.H, png, modes=list(result.modes))
     mac_png = png.with_name(png.stem + "_mac.png")
     labels = [f"{m.label} {m.frequency_hz:.2f}" for m in result.modes]
-    ema.plot_mac(result.auto_mac(), labels, labels, mac_png)
+    plot_mac(result.auto_mac(), labels, labels, mac_png)
     data["plot"], data["plot_mac"] = str(png), str(mac_png)
     write_json_atomic(out, data)
     return data

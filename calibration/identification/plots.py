@@ -1,12 +1,15 @@
-"""Figures of an in-service identification (read the result object; compute nothing new)."""
+"""Figures of an identification: in service (FDD) and of an excitation test (stabilisation
+diagram, MAC matrix). They read result objects and compute nothing new."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 from ..data.outputs import save_figure  # noqa: F401  (the one saver; others import it from here too)
+from .ema import Mode, Stabilisation, band_lines
 from .in_service import InServiceIdentification
 
 _COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_bounce": "tab:green",
@@ -83,4 +86,56 @@ def plot_spectra(result: InServiceIdentification, path) -> Path | None:
     axes[-1, 0].set_xlabel("frequency [Hz]")
     fig.tight_layout()
     fig.set_dpi(100)
+    return save_figure(fig, path)
+
+
+def plot_stabilisation(stab: Stabilisation, frequency: np.ndarray, H: np.ndarray, path, *,
+                       modes: Sequence[Mode] | None = None):
+    """Stabilisation diagram over sum_o |H_o|^2 (dB, right axis): every kept pole by order,
+    marked not stable (o), stable in frequency (.), frequency and damping (x), or all
+    including shape (filled circle); vertical lines at ``modes``. Written atomically to
+    ``path`` (temporary file in the same folder, then ``os.replace``)."""
+    f, Hb, _ = band_lines(frequency, H, stab.band, min_lines=2)
+    fig, ax = plt.subplots(figsize=(10, 5.5))
+    styles = [("not stable", {"marker": "o", "mfc": "none", "color": "0.6", "ms": 4}),
+              ("frequency", {"marker": ".", "color": "tab:blue", "ms": 5}),
+              ("frequency + damping", {"marker": "x", "color": "tab:orange", "ms": 5}),
+              ("frequency + damping + shape", {"marker": "o", "color": "tab:green", "ms": 4})]
+    for level, (label, st) in enumerate(styles):
+        xs, ys = [], []
+        for op in stab.orders:
+            sf_sd = op.stable_frequency & op.stable_damping
+            sel = op.stable_frequency.astype(int) + sf_sd + op.stable == level
+            xs.extend(op.frequency_hz[sel])
+            ys.extend([op.order] * int(sel.sum()))
+        ax.plot(xs, ys, ls="none", label=label, **st)
+    for m in modes or ():
+        ax.axvline(m.frequency_hz, color="k", lw=0.8, ls="--")
+    ax.set_xlim(stab.band)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("model order")
+    ax.legend(fontsize=8, loc="upper left")
+    ax2 = ax.twinx()
+    ax2.plot(f, 10 * np.log10(np.maximum(np.sum(np.abs(Hb) ** 2, axis=1), np.finfo(float).tiny)), color="k", lw=1)
+    ax2.set_ylabel("sum of |H|^2 [dB]")
+    ax.set_title(f"p-LSCF stabilisation (df {100 * stab.freq_tol:g} %, dzeta {100 * stab.damping_tol:g} %, "
+                 f"MAC >= {stab.mac_min:g})")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_mac(matrix: np.ndarray, labels_a: Sequence[str], labels_b: Sequence[str], path):
+    """MAC matrix as a grey-scale image with the values written in; rows ``labels_a``,
+    columns ``labels_b``. Written atomically to ``path``."""
+    matrix = np.asarray(matrix, float)
+    if matrix.shape != (len(labels_a), len(labels_b)):
+        raise ValueError(f"MAC matrix {matrix.shape} does not match {len(labels_a)} x {len(labels_b)} labels")
+    fig, ax = plt.subplots(figsize=(1.2 + 0.6 * len(labels_b), 1.0 + 0.6 * len(labels_a)))
+    ax.imshow(matrix, cmap="Greys", vmin=0, vmax=1)
+    for (i, j), v in np.ndenumerate(matrix):
+        ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
+    ax.set_xticks(range(len(labels_b)), labels_b, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(labels_a)), labels_a, fontsize=8)
+    ax.set_title("MAC")
+    fig.tight_layout()
     return save_figure(fig, path)

@@ -89,12 +89,12 @@ from ..data.campaign import CampaignMeta, Excitation, Prior, Sensor
 from ..data.outputs import CampaignWriter, write_json_atomic
 from ..models.box import SEARCH_PARAMETERS, BoxModel, assemble
 from ..models.box.assembly import carbody_mass
-from ..models.box.fit import mac_matrix
 from ..models.box.modal import ModalModel, ModalSettings, modal_model
 from ..models.box.panel import Panel
 from ..models.box.rig import EXCITER, GEOMETRY, SENSOR_GRID
 from ..models.box.shinkansen import ORDERS, floor_panel, shinkansen_model
 from ..models.car2d import StateSpace
+from ..signals.modal import mac_matrix
 from ..models.simulate import ModalSimulator
 from .effects import EffectChoice
 from .in_service import TRUTH_FORMAT

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ...signals.modal import mac_matrix
 from .assembly import BoxModel
 from .factor import factorise
 from .reduced import ReducedFamily, full_modes
@@ -90,14 +91,6 @@ def carbody_mass_matrix(model: BoxModel):
         keep[model.dof_slices[rb.name]] = 0.0
     D = sp.diags(keep)
     return (D @ model.M @ D).tocsr()
-
-
-def mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """MAC between columns of a (n, p) and columns of b (n, q) or batched b (N, n, q)."""
-    num = np.abs(np.einsum("ip,...iq->...pq", np.conj(a), b)) ** 2
-    da = np.real(np.einsum("ip,ip->p", np.conj(a), a))
-    db = np.real(np.einsum("...iq,...iq->...q", np.conj(b), b))
-    return num / (da[:, None] * db[..., None, :] + 1e-300)
 
 
 def select_targets(frequency_hz, shapes, *, strength=None, band=(8.0, 20.0), n: int = 6, max_mac: float = 0.3,

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
+from ...signals.modal import count_modes_below
 from .assembly import RIGID_DOFS, BoxModel, _local_operator, assemble
 from .shinkansen import free_carbody
 
@@ -70,38 +71,21 @@ class ReducedVehicle:
         return StateSpace(A, B, self.S @ acc_x, self.S @ acc_w, self.sensors, inputs)
 
 
-def modes_below(K, M, cutoff_hz: float) -> int | None:
-    """The number of generalised eigenvalues of (K, M) below (2 pi ``cutoff_hz``)^2, by
-    Sylvester's law of inertia: the negative pivots of an LDL^T factorisation of
-    K - (2 pi cutoff_hz)^2 M (SuperLU in symmetric mode: a symmetric ordering, no pivoting,
-    so U = D L^T and diag(U) = D). None when the factorisation is not of that form (it
-    pivoted, or broke down)."""
-    A = (K - (2 * np.pi * cutoff_hz) ** 2 * M).tocsc()
-    try:
-        lu = scipy.sparse.linalg.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                      options={"SymmetricMode": True})
-    except RuntimeError:  # exactly singular: the cut-off is an eigenvalue
-        return None
-    d = lu.U.diagonal()
-    if not np.array_equal(lu.perm_r, lu.perm_c) or not np.all(np.isfinite(d)) or np.any(d == 0):
-        return None
-    return int(np.count_nonzero(d < 0))
-
-
 def carbody_basis(cb: BoxModel, p, cutoff_hz: float, loads: np.ndarray, shift_hz: float = 0.5):
     """(V, omega, n_modes): free carbody modes below ``cutoff_hz`` and the pseudo-modes of
     the residual flexibility for ``loads`` (n_dof, n_loads), M-orthonormal, K-diagonal.
 
     K - sigma M (sigma = -(2 pi ``shift_hz``)^2) is factorised once and serves both the
     shift-invert Lanczos solve for the modes and the loads' static shapes; the number of
-    modes to ask for is counted beforehand (:func:`modes_below`), so one eigen-solve
+    modes to ask for is counted beforehand
+    (:func:`calibration.signals.modal.count_modes_below`), so one eigen-solve
     suffices."""
     K, M = cb.stiffness(p).tocsc(), cb.M.tocsc()
     sigma = -(2 * np.pi * shift_hz) ** 2
     lu = scipy.sparse.linalg.splu((K - sigma * M).tocsc())
     OPinv = scipy.sparse.linalg.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
     v0 = np.random.default_rng(0).standard_normal(cb.n_dof)
-    below = modes_below(K, M, cutoff_hz)
+    below = count_modes_below(K, M, cutoff_hz)
     # a few more than counted: the highest wanted mode is not the last one asked for, and the
     # first unwanted one shows the cut-off passed. Without a count (the symmetric factorisation
     # pivoted or broke down), grow the request until the cut-off is passed, as before.

@@ -31,20 +31,19 @@ The comparison:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import warnings
 
 import numpy as np
 import scipy.signal
 
-from .data.campaign import Campaign
-from .data.errors import CampaignError
-from .identification.fdd import distance_axis
-from .models.car2d import Output, build_car, state_space, wheelset_positions
-from .models.parameters import CarParameters
-from .models.simulate import ModalSimulator
-from .signals.peaks import parabolic_shift
+from ..data.campaign import Campaign
+from ..data.errors import CampaignError
+from ..identification.fdd import distance_axis
+from ..models.car2d import Output, build_car, state_space, wheelset_positions
+from ..models.parameters import CarParameters
+from ..models.simulate import ModalSimulator
+from ..signals.peaks import parabolic_shift
 
 BANDS_M = {"D1": (3.0, 25.0), "D2": (25.0, 70.0)}
 STEP_M = 0.25  # [m] distance grid of the comparison
@@ -225,31 +224,3 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0,
                             f"{track.path.name} with every wheelset ({min_length:g} m compared plus {trim:g} m left "
                             "out at each end) and usable sensors", path=track.path)
     return ValidationResult(track.name, band, tuple(runs), tuple(skipped))
-
-
-def plot_validation(result: ValidationResult, path) -> Path:
-    from .identification.plots import plt, save_figure
-
-    r = max(result.runs, key=lambda r: r.distance_range[1] - r.distance_range[0])
-    names = list(r.measured)
-    fig, axes = plt.subplots(len(names), 2, figsize=(12, 3 * len(names)), squeeze=False)
-    for k, name in enumerate(names):
-        ax = axes[k, 0]
-        ax.plot(r.distance, r.measured[name], lw=0.8, label="measured")
-        ax.plot(r.distance, r.simulated[name], lw=0.8, label="simulated")
-        ax.set_title(f"{r.run_id}: {name}, band {result.band_m[0]:g}-{result.band_m[1]:g} m")
-        ax.set_xlabel("distance [m]")
-        ax.legend(fontsize=7)
-        ax = axes[k, 1]
-        nper = min(len(r.distance), int(4 * result.band_m[1] / STEP_M))
-        for label, x in (("measured", r.measured[name]), ("simulated", r.simulated[name])):
-            nu, P = scipy.signal.welch(x, fs=1 / STEP_M, nperseg=nper)
-            sel = nu > 0
-            ax.loglog(1 / nu[sel], P[sel], lw=0.8, label=label)
-        ax.axvspan(*result.band_m, color="0.9")
-        ax.set_xlabel("wavelength [m]")
-        ax.set_title("PSD over spatial frequency")
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.set_dpi(100)
-    return save_figure(fig, path)

@@ -1,4 +1,5 @@
-"""Measured against model FRFs of a stationary excitation test (RTRI seed, Figure 9).
+"""Validation of a box calibration on its excitation test: measured against model FRFs
+(RTRI seed, Figure 9).
 
 The model accelerance from the exciter force to every floor accelerometer is the modal
 sum of the calibrated box model (all modes up to 100 Hz and the static residual of the
@@ -8,22 +9,21 @@ Per channel over the analysis band: the frequency response assurance criterion
 
     FRAC = |sum_f conj(H_meas) H_model|^2 / (sum_f |H_meas|^2 sum_f |H_model|^2)
 
-(1: same shape over frequency) and the log-magnitude error in dB.
+(1: same shape over frequency) and the log-magnitude error in dB
+(:mod:`calibration.signals.modal`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .data.campaign import Campaign  # noqa: E402
-from .data.errors import InputError  # noqa: E402
-from .identification.excitation import ShakerIdentification, identify_excitation  # noqa: E402
-from .identification.plots import save_figure  # noqa: E402
+from ..data.campaign import Campaign
+from ..data.errors import InputError
+from ..identification.excitation import ShakerIdentification, identify_excitation
+from ..models.box.modal import modal_model
+from ..models.box.shinkansen import calibrated_box_model
+from ..signals.modal import frac, log_error_db
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,9 +44,6 @@ class FRFComparison:
 
 
 def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentification | None = None) -> FRFComparison:
-    from .models.box.shinkansen import calibrated_box_model
-    from .models.box.modal import modal_model
-
     ident = identify_excitation(campaign) if ident is None else ident
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
@@ -73,29 +70,4 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentificati
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]
     Hm, Ha = ident.frf.H[sel], modal.frf(f)
-    frac = np.abs(np.sum(np.conj(Hm) * Ha, axis=0)) ** 2 / (np.sum(np.abs(Hm) ** 2, axis=0)
-                                                             * np.sum(np.abs(Ha) ** 2, axis=0))
-    err = np.sqrt(np.mean((20 * np.log10(np.abs(Ha) / np.maximum(np.abs(Hm), 1e-30))) ** 2, axis=0))
-    return FRFComparison(ident.sensors, f, Hm, Ha, frac, err, (lo, hi))
-
-
-def plot_frf_comparison(cmp: FRFComparison, path, channels: int = 9):
-    """|H| measured and model for up to ``channels`` accelerometers (as seed Figure 9)."""
-    idx = np.linspace(0, len(cmp.sensors) - 1, min(channels, len(cmp.sensors))).round().astype(int)
-    cols = 3
-    rows = int(np.ceil(len(idx) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.6 * rows), sharex=True, squeeze=False)
-    for ax, i in zip(axes.ravel(), idx):
-        ax.semilogy(cmp.frequency, np.abs(cmp.measured[:, i]), "k-", lw=1, label="measured (H1)")
-        ax.semilogy(cmp.frequency, np.abs(cmp.model[:, i]), "r--", lw=1, label="calibrated model")
-        ax.set_title(f"{cmp.sensors[i]}: FRAC {cmp.frac[i]:.3f}", fontsize=9)
-        ax.grid(True, which="both", alpha=0.3)
-    for ax in axes.ravel()[len(idx):]:
-        ax.axis("off")
-    for ax in axes[-1]:
-        ax.set_xlabel("frequency [Hz]")
-    axes[0, 0].set_ylabel("|a / F| [(m/s^2)/N]")
-    axes[0, 0].legend(fontsize=8)
-    fig.suptitle("FRF gain from the exciter force to the floor accelerations")
-    fig.tight_layout()
-    return save_figure(fig, path)
+    return FRFComparison(ident.sensors, f, Hm, Ha, frac(Hm, Ha), log_error_db(Hm, Ha), (lo, hi))
