@@ -22,11 +22,10 @@ from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, Effec
 from calibration.models.box.assembly import carbody_mass
 from calibration.models.box.modal import ModalModel
 from calibration.models.box.rig import EXCITER, SENSOR_GRID
-from calibration.truth.excitation import (BRACKET_CLEARANCE, BRACKET_DAMPING, EQUIPMENT_DETUNING, EQUIPMENT_X,
-                                          EQUIPMENT_Y, SOFTENING_PANELS, ExcitationSettings, SensorBracket,
-                                          UnderfloorEquipment, add_equipment, draw_truth_parameters,
-                                          mount_point, soften_panel, synth_excitation, truth_model,
-                                          truth_modes)
+from calibration.truth.excitation import ExcitationSettings, draw_truth_parameters, synth_excitation, truth_model, truth_modes
+from calibration.truth.excitation_effects import (BRACKET_CLEARANCE, BRACKET_DAMPING, EQUIPMENT_DETUNING, EQUIPMENT_X,
+                                                  EQUIPMENT_Y, SOFTENING_PANELS, SensorBracket, UnderfloorEquipment,
+                                                  add_equipment, mount_point, soften_panel)
 
 SETTINGS = ExcitationSettings(runs=1, duration=60.0, order_change=COARSE_BOX_ORDERS)
 MOUNT = (-3.3, -0.8, 1.1)  # [m] an off-centre floor point for the physics tests
