@@ -52,7 +52,7 @@ def test_two_input_h1_recovers_known_filters():
     b1, a1 = scipy.signal.butter(2, 10.0, fs=fs)
     b2 = [0.5, -0.25]
     y = scipy.signal.lfilter(b1, a1, u[0]) + scipy.signal.lfilter(b2, [1.0], u[1])
-    f, G = segment_csd(np.vstack([u, y]), fs, FDDSettings(window=10.24, nfft_factor=1))
+    f, G = segment_csd(np.vstack([u, y]), fs, FDDSettings(welch_s=10.24, nfft_factor=1))
     H, coh = h1(G, [2], [0, 1])
     _, H1 = scipy.signal.freqz(b1, a1, worN=f, fs=fs)
     _, H2 = scipy.signal.freqz(b2, [1.0], worN=f, fs=fs)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..data.campaign import Campaign
+from .. import checks
 from ..data.errors import InputError
 from ..signals.modal import mac_matrix
 from . import ema
@@ -48,6 +49,15 @@ class ShakerSettings:
     cluster_mac: float = 0.8
     max_damping: float = 0.10  # poles more damped than this are not structural modes here
     peak_separation_hz: float = 0.3
+
+    def __post_init__(self):
+        checks.increasing(self, "band", low=0.0)
+        checks.whole(self, "nperseg", minimum=16)
+        if not self.orders or any(isinstance(o, bool) or not isinstance(o, int) or o < 2 for o in self.orders) \
+                or list(self.orders) != sorted(set(self.orders)):
+            raise ValueError(f"ShakerSettings.orders must be increasing integers >= 2, got {self.orders!r}")
+        checks.fraction(self, "min_fraction", "cluster_mac", closed=True)
+        checks.positive(self, "cluster_tol", "bandwidth_fraction", "max_damping", "peak_separation_hz")
 
 
 @dataclass(frozen=True, eq=False)

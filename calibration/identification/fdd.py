@@ -33,6 +33,7 @@ import numpy as np
 import scipy.ndimage
 import scipy.signal
 
+from .. import checks
 from ..data.campaign import Campaign, CampaignMeta, Run
 from ..signals.filters import SEED_BAND_HZ, SEED_ORDER, bandpass
 from ..signals.resample import is_regular, regular_run, to_uniform_grid
@@ -46,8 +47,8 @@ class FDDSettings:
     band: tuple[float, float] = SEED_BAND_HZ  # [Hz]
     order: int = SEED_ORDER
     fs_analysis: float = 100.0  # [Hz] after band-pass and resampling
-    window: float = 20.48  # [s] Welch segment length
-    overlap: float = 0.5
+    welch_s: float = 20.48  # [s] Welch segment length (nperseg = welch_s x fs_analysis)
+    overlap: float = 0.5  # fraction of a Welch segment shared with the next
     nfft_factor: int = 4  # zero padding of each Welch segment (finer peak location)
     # [s] filter padding taken from surrounding valid data: the 0.25 Hz high-pass section of
     # the seed's band-pass rings with a 2.4 s e-fold time after an edge; 20 s leave e^-8
@@ -57,12 +58,12 @@ class FDDSettings:
     seed: int = 0
 
     def __post_init__(self):
-        if self.segment_length <= 0:
-            raise ValueError("segment_length must be > 0 m")
+        checks.positive(self, "segment_length", "fs_analysis", "welch_s", "pad")
+        checks.whole(self, "order", "nfft_factor")
+        checks.whole(self, "redraws", minimum=0)
+        checks.fraction(self, "overlap")
         if not 0 < self.band[0] < self.band[1] < self.fs_analysis / 2:
-            raise ValueError(f"band {self.band} Hz must lie inside (0, fs_analysis/2)")
-        if not 0 <= self.overlap < 1:
-            raise ValueError("overlap must be in [0, 1)")
+            raise ValueError(f"FDDSettings.band {self.band} Hz must lie inside (0, fs_analysis/2)")
 
 
 @dataclass(frozen=True)
@@ -292,7 +293,7 @@ def channel_matrix(run: Run, names: tuple[str, ...], derived: dict, i0: int, i1:
 def welch_frames(x: np.ndarray, fs: float, settings: FDDSettings) -> tuple[np.ndarray, np.ndarray, float]:
     """Windowed FFT frames (n_win, n_ch, n_freq) of the rows of x, their frequencies [Hz]
     and the one-sided density scale that turns X_i X_j^* into a CSD [units^2/Hz]."""
-    nper = int(round(settings.window * fs))
+    nper = int(round(settings.welch_s * fs))
     if x.shape[1] < nper:
         raise ValueError(f"segment of {x.shape[1]} samples is shorter than one Welch window ({nper})")
     hop = max(1, int(round(nper * (1 - settings.overlap))))
@@ -365,7 +366,7 @@ def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, sett
     a = int(round((run.time[i0] - t[0]) * fs_a))
     b = min(xr.shape[1], int(round((run.time[i1 - 1] - t[0]) * fs_a)) + 1)
     speed = float((seg.end - seg.start) / (run.time[i1 - 1] - run.time[i0]))
-    if a < 0 or b - a < int(round(settings.window * fs_a)):
+    if a < 0 or b - a < int(round(settings.welch_s * fs_a)):
         return None, "segment shorter than one Welch window"
     return (xr[:, a:b], fs_a, speed), ""
 

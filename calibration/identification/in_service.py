@@ -31,6 +31,7 @@ import scipy.signal
 
 import warnings
 
+from .. import checks
 from ..data.campaign import Campaign
 from ..data.errors import CampaignError
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
@@ -68,6 +69,13 @@ class IdentifySettings:
     # by 4-6 % with a spurious pole, and 0.009 at one speed (3.73 Hz for a 0.906 Hz
     # carbody bounce). Below this the two-input estimate is not used.
     min_separability: float = 0.3
+
+    def __post_init__(self):
+        checks.increasing(self, "carbody_band", "bogie_band", low=0.0)
+        checks.whole(self, "extra_poles", minimum=0)
+        checks.whole(self, "io_segments")
+        checks.non_negative(self, "peak_prominence")
+        checks.fraction(self, "min_coherence", "min_separability", closed=True)
 
 
 @dataclass(frozen=True)

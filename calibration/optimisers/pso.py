@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import checks
 from .base import SearchParameter, bounds
 
 
@@ -46,10 +47,12 @@ class PSOSettings:
     digits: int = 9  # significant digits objective values are compared at (0: all)
 
     def __post_init__(self):
-        if self.particles < 2 or self.iterations < 1:
-            raise ValueError("need at least 2 particles and 1 iteration")
+        checks.whole(self, "particles", minimum=2)
+        checks.whole(self, "iterations")
+        checks.non_negative(self, "target", "inertia", "cognitive", "social")
+        checks.positive(self, "max_velocity")
         if not 0 <= self.digits <= 15:
-            raise ValueError(f"digits must lie in 0..15, got {self.digits}")
+            raise ValueError(f"PSOSettings.digits must lie in 0..15, got {self.digits}")
 
 
 def resolved(values, digits: int) -> np.ndarray:

@@ -27,14 +27,15 @@ import numpy as np
 import scipy.signal
 
 from ..data.campaign import Campaign
+from .. import checks
 from .peaks import parabolic_shift
 from .resample import is_regular, regular_run, to_uniform_grid
 
 
 @dataclass(frozen=True)
 class LineSettings:
-    window: float = 8.0  # [s]
-    nperseg: float = 2.0  # [s] Welch segment inside a window
+    window_s: float = 8.0  # [s] an analysis window, short enough for the speed to hold
+    welch_s: float = 2.0  # [s] Welch segment inside a window (nperseg = welch_s x fs)
     speed_tolerance: float = 0.01  # relative speed spread inside a window
     windows_per_run: int = 8
     min_frequency: float = 2.0  # [Hz] below this the vehicle's own response dominates
@@ -47,6 +48,17 @@ class LineSettings:
     impact_lags: tuple[float, float] = (5.0, 100.0)  # [m] spacings searched for periodic impacts
     impact_z: float = 6.0  # significance of the autocorrelation peak (robust z-score)
     seed: int = 0
+
+    def __post_init__(self):
+        checks.positive(self, "window_s", "welch_s", "speed_tolerance", "min_frequency", "prominence_db",
+                        "presence_db", "search", "impact_highpass", "impact_z")
+        checks.whole(self, "windows_per_run")
+        checks.fraction(self, "tone_presence", closed=True)
+        checks.increasing(self, "impact_lags", low=0.0)
+        if self.welch_s > self.window_s:
+            raise ValueError(f"LineSettings.welch_s = {self.welch_s} s must fit in window_s = {self.window_s} s")
+        if not self.min_speed_ratio > 1:
+            raise ValueError(f"LineSettings.min_speed_ratio must be > 1, got {self.min_speed_ratio!r}")
 
 
 @dataclass(frozen=True)
@@ -107,8 +119,8 @@ class LineWindowCollector:
         fs = 1.0 / float(np.median(np.diff(run.time)))
         if abs(fs / self.fs - 1) < 1e-6:
             fs = self.fs
-        n = int(st.window * fs)
-        nper = int(st.nperseg * fs)
+        n = int(st.window_s * fs)
+        nper = int(st.welch_s * fs)
         if run.speed is not None:
             speed = run.speed
         elif run.distance is not None:

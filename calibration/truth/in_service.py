@@ -37,6 +37,7 @@ import numpy as np
 import scipy.interpolate
 import scipy.signal
 
+from .. import checks
 from ..data.campaign import CampaignMeta, Prior, Sensor
 from ..data.outputs import CampaignWriter, write_json_atomic
 from ..data.units import STANDARD_GRAVITY
@@ -90,11 +91,16 @@ class InServiceSettings:
     chunk: int = 1 << 17
 
     def __post_init__(self):
-        if self.journeys < 1:
-            raise ValueError("journeys must be >= 1")
-        lo, hi = self.speed_range
-        if not 0 < lo < hi:
-            raise ValueError(f"speed range {self.speed_range} must satisfy 0 < low < high")
+        checks.whole(self, "journeys")
+        checks.whole(self, "chunk")
+        checks.increasing(self, "speed_range", low=0.0)
+        if self.speed_range[0] == 0:
+            raise ValueError(f"InServiceSettings.speed_range {self.speed_range} must have a low speed > 0")
+        checks.positive(self, "fs", "gyro_scale", "gyro_tone_hz", "gps_rate")
+        checks.non_negative(self, "perturb", "sensor_offset", "gyro_tone_raw", "gyro_noise_raw", "gyro_offset_raw",
+                            "gyro_drift_raw", "bogie_acc_noise", "axle_acc_noise", "gps_error", "gps_jitter",
+                            "speed_noise", "recording_noise", "carbody_acc_noise")
+        checks.fraction(self, "perturb", "gap_probability", "nan_probability", closed=True)
         if not 0 <= self.time_jitter < 0.5 / self.fs:
             raise ValueError(f"time_jitter {self.time_jitter} s must lie in [0, half a sample interval "
                              f"{0.5 / self.fs} s) so that the time column stays strictly increasing")
