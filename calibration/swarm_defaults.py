@@ -1,17 +1,25 @@
-"""How the box model's particles search a shaker campaign: the defaults of
-:func:`calibration.calibrate_box.calibrate_box_campaign`, here without its imports so that
-the command line's help can state them without loading the model on every call."""
+"""How the box model's particles search: the defaults of a shaker campaign's calibration
+(:func:`calibration.calibrate_box.calibrate_box_campaign`) and of targets given by mode type
+(``railcal calibrate --targets``), kept here without imports so that the command line's
+help can state them without loading the model. docs/methods/calibration-box.md (sections 4
+and 7) gives the runs that chose each value."""
 
-#: A shaker campaign's particles run as this many independent swarms, the next one only
-#: if the last, refined, is above CAMPAIGN_DONE_PCT: the swarm stops at the seed's 0.5 %,
-#: which is no proof of the right basin. On the demo's test (seed 7) one swarm of 1000
-#: stopped at 0.488 % and refined to 0.0045 % before the identification's clustering
-#: change, and after it (targets moved by up to 0.001 Hz) ran all 1000 iterations to
-#: 0.541 %, floor membrane and three joints on their limits, every refinement round refused;
-#: in swarms of 250 the first stopped at 0.485 % in that same basin (its refinement refused
-#: too), the second at 0.480 % elsewhere, refined to 0.0028 %.
+#: A shaker campaign's particles run as this many independent swarms, because one swarm can
+#: stop at the seed's 0.5 % in a basin no refinement leaves (the demo's test did).
 CAMPAIGN_SWARMS = 4
-#: ... the refined fit that ends the search: the identified frequencies are within
-#: 0.03-0.07 % of the truth (synthetic seeds 1-3) and the model family holds the truth, so a
-#: fit at the identification's resolution exists; 0.1 % is about twice that resolution.
+#: A campaign's search ends once a refined swarm is within this [%] of every identified mode:
+#: about twice the identification's resolution on the synthetic tests (0.03-0.07 %).
 CAMPAIGN_DONE_PCT = 0.1
+
+#: A typed target (an idealised floor pattern) counts only when its partner's MAC with the
+#: pattern is at least this and no other target shares the partner; without it a typed fit
+#: met every frequency with modes unlike their types.
+TYPED_MIN_MAC = 0.8
+#: Sequential-LP steps on the full model that keep the MAC floor after the CasADi refinement,
+#: which fits frequencies only and has its rounds refused where the floor binds.
+TYPED_POLISH_STEPS = 30
+#: Typed targets: independent swarms, each refined and polished, the best kept; one swarm
+#: gathers on a single basin (on seed Figure 5 the stiff-end-wall one, stuck above 0.5 %).
+TYPED_SWARMS = 4
+#: Rounds of the CasADi refinement for typed targets.
+TYPED_REFINE_ROUNDS = 20

@@ -17,7 +17,8 @@ from calibration.data.campaign import open_campaign, read_input_file
 from calibration.data.outputs import check_campaign_output, check_outputs, read_result, write_result
 from calibration.data.errors import InputError
 from calibration.models.parameters import CAR_PARAMETER_SPECS, ParameterError
-from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
+from calibration.swarm_defaults import (CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_MIN_MAC, TYPED_POLISH_STEPS,
+                                        TYPED_REFINE_ROUNDS, TYPED_SWARMS)
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
 
@@ -367,39 +368,6 @@ def _unsound(fit) -> str:
     prints as 0.800 but is under a floor of 0.8."""
     bad = [r for r in fit if not r["sound"]]
     return "".join(f", {r['label']} unsound (MAC {r['mac']:.6f})" for r in bad)
-
-
-#: A typed target (an idealised floor pattern, no measured amplitude) pairs, like every
-#: target, only with model modes that are at least half carbody by kinetic energy (BoxFit's
-#: default): on the seed's Figure 5 targets the swarm otherwise paired the lateral-vertical
-#: type with a bogie mode whose floor motion is 1 % of a carbody mode's but has the pattern's
-#: shape.
-#: It counts only when sound: MAC with the pattern >= this, its partner no other
-#: target's (BoxFit.min_mac). Without it, the door-zone fit of typing D met every frequency
-#: with the second torsion paired at MAC 0.33 to a mode unlike a torsion. The swarm then
-#: moves in log factors: in the linear 0.25-4 box it collapsed onto the box's limits
-#: (typing D, 1000 x 1000: 326 %; in log factors, 400 x 300: 2.9 %, every pairing sound).
-TYPED_MIN_MAC = 0.8
-#: ... and near the answer that floor binds (a partner mixing with a close neighbour), so the
-#: CasADi refinement (TYPED_REFINE_ROUNDS), which fits frequencies only, has its rounds
-#: refused; up to this many sequential-LP steps on the full model that keep the floor follow
-#: it (polish_box), over the whole factor set: the credible set's end-wall and floor-floor
-#: joints join here. On typing D with the credible set, 200 x 200 in one swarm, seed 0:
-#: 0.422 %; 1000 x 1000 in four swarms (TYPED_SWARMS), seeds 0 and 1: 0.497 % and 0.499 %;
-#: with the grouped 12 factors the polish found no such step (2.89 % stays, 400 x 300 swarm).
-TYPED_POLISH_STEPS = 30
-#: ... and the particles are split into this many independent swarms, each refined and
-#: polished, the lowest full-model error kept (calibrate_box(swarms=...)): one swarm of 1000
-#: gathers on a single basin, and on the typing D targets (seeds 0 and 1) that was the one
-#: with stiff end walls (4.0, their limit), where the breathing MAC floor stops the polish at
-#: 0.517 % and 0.551 %. Four swarms of 250 (seeds 0 and 1): each seed's four ended in
-#: different places (swarm bests 0.66-1.14 % and one at 29-36 % with a lost pairing, end walls
-#: at 4.0 and at 0.1-0.29), polished to 0.497 % and 0.499 % (both from a stiff-wall swarm),
-#: 0.56-0.76 % from the others; 54-55 min each, two runs sharing the 2 cores. Now that no
-#: swarm runs after one ends within the stop (calibrate_box's done_pct), both end after
-#: their second swarm with the same answers, in 33 and 30 min.
-TYPED_SWARMS = 4
-TYPED_REFINE_ROUNDS = 20
 
 
 def _calibrate_box_targets(args, settings, swarms: int):

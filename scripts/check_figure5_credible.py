@@ -62,7 +62,7 @@ import numpy as np
 
 from calibration.calibrate import read_targets
 from calibration.calibrate_box import box_search, calibrate_box
-from railcal.cli import TYPED_MIN_MAC
+from calibration.swarm_defaults import TYPED_MIN_MAC
 from calibration.data.campaign import Sensor
 from calibration.models.box import FactorSet, assemble, shinkansen_vehicle
 from calibration.models.box.assembly import StiffnessParameter

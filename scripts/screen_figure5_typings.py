@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from check_figure5_credible import TARGETS  # noqa: E402
 
 from calibration.calibrate import read_targets  # noqa: E402
-from railcal.cli import TYPED_MIN_MAC  # noqa: E402
+from calibration.swarm_defaults import TYPED_MIN_MAC  # noqa: E402
 from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402

@@ -36,14 +36,9 @@ class ShakerSettings:
     nperseg: int = 4096  # 20.5 s at 200 Hz: 0.049 Hz lines
     orders: tuple[int, ...] = tuple(range(16, 97, 4))
     min_fraction: float = 0.4  # of the orders a mode's pole must be found (frequency-stable) in
-    # poles closer in frequency than the larger of cluster_tol and bandwidth_fraction x their
-    # damping ratio (relative), and at least cluster_mac alike in shape, are one mode: at a
-    # pair of modal overlap 10-14 (synthetic seed 1, 13.858 / 13.915 Hz, 2-3 % damping) the
-    # poles of one mode scatter by +-0.3 % in frequency and MAC 0.6-0.99 in shape from order
-    # to order (they mix with the partner; the partners' MAC is below 0.1), so 0.2 % and MAC
-    # 0.9 split its cluster into pieces; a pole's frequency scatter grows with its bandwidth.
-    # Measured on the synthetic shaker tests of the tests (coarse box, seeds 2 and 5311-5316):
-    # a true mode's cluster holds 10-20 of the 21 orders, most 17-20.
+    # Poles closer in frequency than the larger of cluster_tol and bandwidth_fraction x their
+    # damping ratio (relative), and at least cluster_mac alike in shape, are one mode; the
+    # values come from the pole scatter of a close pair (docs/methods/identification-shaker.md).
     cluster_tol: float = 0.002
     bandwidth_fraction: float = 0.25
     cluster_mac: float = 0.8

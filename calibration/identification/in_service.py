@@ -56,18 +56,12 @@ class IdentifySettings:
     extra_poles: int = 1  # computational poles that absorb what lies outside the band
     peak_prominence: float = 0.1  # [decades] of a summed-singular-value peak, at least
     min_coherence: float = 0.5  # FRF bins below this are not fitted
-    # The seed sums 20-50 FDDs (Table 3) and the FDD analyses keep that. The input-output
-    # estimate averages cross-spectra, whose variance falls with every segment: it uses
-    # 200 (random, possibly overlapping, from all runs). On the demo campaign the carbody
-    # bounce error went -2.15 %, -1.57 %, -0.75 % with 50, 100, 200 segments.
+    # Random segments (possibly overlapping, from all runs) averaged by the input-output
+    # estimate, whose variance falls with each (docs/methods/identification-in-service.md).
     io_segments: int = 200
-    # The two rails are told apart only where speeds differ enough to decorrelate them:
-    # 1 - |coherence between the two inputs|^2 (the fraction of the trailing rail that is
-    # not the leading rail's delayed copy; the two-input estimate's variance grows as its
-    # inverse). Its median over the carbody band was 0.62-0.70 on campaigns whose carbody
-    # modes came within 1.2 %, 0.149 on two 2 x 5 km campaigns whose carbody fits were off
-    # by 4-6 % with a spurious pole, and 0.009 at one speed (3.73 Hz for a 0.906 Hz
-    # carbody bounce). Below this the two-input estimate is not used.
+    # Least median over the carbody band of 1 - |coherence of the two inputs|^2, the share
+    # of the trailing rail that is not the leading rail's delayed copy; below it the
+    # two-input estimate is not used (the same document gives the campaigns behind 0.3).
     min_separability: float = 0.3
 
     def __post_init__(self):
