@@ -56,7 +56,6 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.sparse.linalg
-from exudyn.advancedUtilities import CreateSymbolicUserFunction
 from exudyn.itemInterface import (
     CartesianSpringDamper,
     CoordinateConstraint,
@@ -81,7 +80,7 @@ from calibration.models.box.assembly import BoxModel, _local_operator, assemble
 from calibration.models.box.reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
-from reference_models.car2d import RailInput, rail_functions
+from reference_models.car2d import RailInput, drive_rail_constraints
 
 RIGID_HZ = 0.05  # [Hz] carbody modes below this are rigid-body motions (no structural damping)
 RAIL_MASS = 1.0  # [kg] of each prescribed rail point (its motion is given: the value only scales a reaction)
@@ -367,15 +366,8 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         for node, z, dz in zip(rail_nodes, z0, dz0):
             mbs.SetNodeParameter(node, "initialCoordinates", [float(z)])
             mbs.SetNodeParameter(node, "initialVelocities", [float(dz)])
-        mbs.Assemble()  # symbolic user functions go in after assembly (exudyn's recipe)
-        for con, x in zip(rail_constraints, wheelset_x):
-            level, rate = rail_functions(rail, float(x))
-            uf = CreateSymbolicUserFunction(mbs, level, "offsetUserFunction", con)
-            uf_t = CreateSymbolicUserFunction(mbs, rate, "offsetUserFunction_t", con)
-            mbs.SetObjectParameter(con, "offsetUserFunction", uf)
-            mbs.SetObjectParameter(con, "offsetUserFunction_t", uf_t)
-            keep_alive += [uf, uf_t]
         mbs.Assemble()
+        keep_alive += drive_rail_constraints(mbs, rail, rail_constraints, wheelset_x)
     return mbs, BoxHandles(carbody, modal_object, modal, frame, bogies, bogie_nodes, links, mesh, tuple(rail_nodes),
                            tuple(rail_constraints), wheelset_x, load, modes, tuple(keep_alive))
 

@@ -148,6 +148,22 @@ def rail_functions(rail: RailInput, x_wheelset: float):
     return level, rate
 
 
+def drive_rail_constraints(mbs, rail: RailInput, constraints, wheelset_x) -> list:
+    """Give each wheelset's rail-level constraint the track's level and rate as symbolic user
+    functions (after ``mbs.Assemble()``, exudyn's recipe) and assemble again. Returns the
+    functions, which must outlive the system."""
+    keep = []
+    for con, x in zip(constraints, wheelset_x):
+        level, rate = rail_functions(rail, float(x))
+        uf = CreateSymbolicUserFunction(mbs, level, "offsetUserFunction", con)
+        uf_t = CreateSymbolicUserFunction(mbs, rate, "offsetUserFunction_t", con)
+        mbs.SetObjectParameter(con, "offsetUserFunction", uf)
+        mbs.SetObjectParameter(con, "offsetUserFunction_t", uf_t)
+        keep += [uf, uf_t]
+    mbs.Assemble()
+    return keep
+
+
 # ---------------------------------------------------------------------------- the model
 @dataclass(frozen=True, eq=False)
 class CarHandles:
@@ -237,16 +253,9 @@ def build_car_exudyn(p: CarParameters, *, rail: RailInput | None = None) -> tupl
         m_contact = mbs.AddMarker(MarkerBodyPosition(bodyNumber=bodies[w], localPosition=[0.0, 0.0, 0.0]))
         springs[f"primary{j + 1}"] = spring_damper(attach(f"bogie{1 + j // 2}", xw[j]), m_contact, p.k_p, p.c_p)
 
-    mbs.Assemble()  # symbolic user functions go in after assembly (exudyn's recipe)
+    mbs.Assemble()
     if rail is not None:
-        for j, con in enumerate(rail_constraints):
-            level, rate = rail_functions(rail, xw[j])
-            uf = CreateSymbolicUserFunction(mbs, level, "offsetUserFunction", con)
-            uf_t = CreateSymbolicUserFunction(mbs, rate, "offsetUserFunction_t", con)
-            mbs.SetObjectParameter(con, "offsetUserFunction", uf)
-            mbs.SetObjectParameter(con, "offsetUserFunction_t", uf_t)
-            keep_alive += [uf, uf_t]
-        mbs.Assemble()
+        keep_alive += drive_rail_constraints(mbs, rail, rail_constraints, xw)
 
     for name in BODIES:
         first = mbs.GetNodeODE2Index(nodes[name])

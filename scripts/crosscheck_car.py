@@ -30,24 +30,27 @@ TOL_UNDAMPED, TOL_DAMPED, TOL_NRMSE, TOL_WALL = 1e-6, 1e-4, 1e-3, 30.0
 SPEED, DURATION = 40.0, 10.0  # [m/s], [s]
 
 
+def _table(p, damped: bool) -> np.ndarray:
+    """Print railcal's and exudyn's eigenvalues side by side; return the relative errors."""
+    ours, theirs = railcal_eigenvalues(p, damped=damped), exudyn_eigenvalues(p, damped=damped)
+    err = eigen_errors(ours, theirs)
+    width = 28 if damped else 14
+    print(f"  {'railcal':>{width}} {'exudyn':>{width}} {'rel. error':>11}")
+    for a, e in zip(ours, err):
+        b = theirs[np.argmin(np.abs(theirs - a))]
+        cells = [f"{x.real:12.7f}{x.imag:+14.7f}j" if damped else f"{x:14.9f}" for x in (a, b)]
+        print(f"  {cells[0]} {cells[1]} {e:11.2e}")
+    return err
+
+
 def eigen_tables() -> bool:
     ok = True
     for name, p in VEHICLES.items():
-        ours, theirs = railcal_eigenvalues(p, damped=False), exudyn_eigenvalues(p, damped=False)
-        err = eigen_errors(ours, theirs)
         print(f"\n{name}: undamped natural frequencies [Hz]")
-        print(f"  {'railcal':>14} {'exudyn':>14} {'rel. error':>11}")
-        for a, e in zip(ours, err):
-            b = theirs[np.argmin(np.abs(theirs - a))]
-            print(f"  {a:14.9f} {b:14.9f} {e:11.2e}")
+        err = _table(p, damped=False)
         ok_u = err.max() <= TOL_UNDAMPED
-        ours, theirs = railcal_eigenvalues(p, damped=True), exudyn_eigenvalues(p, damped=True)
-        err_d = eigen_errors(ours, theirs)
         print(f"{name}: damped eigenvalues [rad/s] (one per conjugate pair)")
-        print(f"  {'railcal':>28} {'exudyn':>28} {'rel. error':>11}")
-        for a, e in zip(ours, err_d):
-            b = theirs[np.argmin(np.abs(theirs - a))]
-            print(f"  {a.real:12.7f}{a.imag:+14.7f}j {b.real:12.7f}{b.imag:+14.7f}j {e:11.2e}")
+        err_d = _table(p, damped=True)
         ok_d = err_d.max() <= TOL_DAMPED
         print(f"  max rel. error: undamped {err.max():.2e} (tol {TOL_UNDAMPED:g}), damped {err_d.max():.2e} "
               f"(tol {TOL_DAMPED:g}) -> {'PASS' if ok_u and ok_d else 'FAIL'}")
