@@ -2,7 +2,7 @@
 
 The car from a calibration file (``--car-calibration``, default the seed's intercity
 trailer), the box from a box calibration (``--box-calibration``, default the nominal
-Shinkansen-type carbody); both carry a synthetic 5 km track for stand-alone running.
+Shinkansen-type carbody with outputs at the reference floor grid); both carry a synthetic 5 km track for stand-alone running.
 Binaries for every platform whose compiler is installed (linux64 with gcc, win64 with
 Debian's gcc-mingw-w64-x86-64).
 
@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calibration.models.box.rig import EXCITER, SENSOR_GRID, point_record
 from calibration.models.vehicles import INTERCITY_TRAILER
 from fmu_src.export import export_fmu
 from fmu_src.reference import smooth_profile
@@ -32,7 +33,8 @@ def main() -> int:
     car = json.loads(Path(args.car_calibration).read_text()) if args.car_calibration else \
         {"model": "car2d", "parameters": INTERCITY_TRAILER.as_dict()}
     box = json.loads(Path(args.box_calibration).read_text()) if args.box_calibration else \
-        {"model": "box", "parameters": {}}
+        {"model": "box", "parameters": {}, "sensors": [point_record(s) for s in SENSOR_GRID],
+         "exciter": point_record(EXCITER)}
     out = Path(args.out)
     with tempfile.TemporaryDirectory() as tmp:
         s, z, _ = smooth_profile(5000.0, seed=1)
