@@ -76,7 +76,7 @@ from exudyn.itemInterface import (
     VObjectGenericODE2,
 )
 
-from calibration.models.box.assembly import BoxModel, _local_operator, assemble
+from calibration.models.box.assembly import BoxModel, local_operator, assemble
 from calibration.models.box.reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
@@ -127,7 +127,7 @@ def carbody_modes(vehicle, parameters, cutoff_hz: float, sensors, exciter) -> Ca
     pts, labels, ops, loads = [], [], [], []
     for ln in vehicle.links:
         if ln.body_a in panels:
-            idx, G = _local_operator(cb, ln.body_a, ln.point_a, patch=ln.patch)
+            idx, G = local_operator(cb, ln.body_a, ln.point_a, patch=ln.patch)
             full = np.zeros((3, cb.n_dof))
             full[:, idx] = G
             pts.append(ln.point_a)

@@ -132,7 +132,7 @@ def uniform_vehicle(shell: UniformShell, *, joint_factor: float = 1e3, order_inc
     return replace(v, panels=panels, joints=joints, masses=(), parameters=())
 
 
-def _elastic_modes(K, M, n_modes: int, shift_hz: float = 0.5):
+def elastic_modes(K, M, n_modes: int, shift_hz: float = 0.5):
     w2, X = sla.eigsh(K.tocsc(), k=n_modes + N_RIGID, M=M.tocsc(), sigma=-(2 * np.pi * shift_hz) ** 2, which="LM")
     order = np.argsort(w2)
     w2, X = w2[order], X[:, order]
@@ -143,7 +143,7 @@ def box_modes(shell: UniformShell, points: np.ndarray, n_modes: int = 6, **vehic
     """railcal's free-free elastic modes of ``shell``, displacements at ``points`` (n, 3) [m]."""
     t0 = time.perf_counter()
     model = assemble(uniform_vehicle(shell, **vehicle_options))
-    f, X = _elastic_modes(model.K0, model.M, n_modes)
+    f, X = elastic_modes(model.K0, model.M, n_modes)
     S = np.vstack([model.displacement(_panel_at(model, p, shell.geometry), p) for p in points])
     return Modes(f, (S @ X).T, points, model.n_dof, time.perf_counter() - t0)
 
@@ -442,7 +442,7 @@ def lattice_modes(shell: UniformShell, settings: LatticeSettings = LatticeSettin
     t0 = time.perf_counter()
     lattice = build_lattice(shell, settings)
     M, K, nodes = lattice_matrices(shell, lattice, settings)
-    f, X = _elastic_modes(K, M, n_modes)
+    f, X = elastic_modes(K, M, n_modes)
     first = {}
     for (p, d), i in nodes.items():
         first.setdefault(p, i)

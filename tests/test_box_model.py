@@ -154,11 +154,11 @@ def test_a_reduced_basis_reproduces_the_full_model_near_where_it_was_built(vehic
 def test_a_patch_mean_from_one_grid_evaluation_equals_a_finer_point_by_point_quadrature():
     # the patch mean evaluates the basis once on the whole Gauss grid; the basis being
     # polynomial, any finer rule gives the same mean (here 40 x 40 points, one at a time)
-    from calibration.models.box.assembly import _local_operator
+    from calibration.models.box.assembly import local_operator
     strip = _strip(order=(12, 4))
     model = _alone(strip)
     centre, patch = np.array([1.3, 0.05, 0.0]), (0.8, 0.3)
-    _, G = _local_operator(model, "strip", centre, patch=patch)
+    _, G = local_operator(model, "strip", centre, patch=patch)
     x, w = np.polynomial.legendre.leggauss(40)
     fine = sum(wi * wj / 4 * strip.displacement(centre + [xi * patch[0] / 2, xj * patch[1] / 2, 0.0])
                for xi, wi in zip(x, w) for xj, wj in zip(x, w))

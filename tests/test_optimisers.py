@@ -95,11 +95,11 @@ def test_ce_with_the_elite_own_deviation_stalls_below_the_carbody_bounce_target(
 
 
 def test_truncated_normal_draws_match_scipy_in_distribution():
-    from calibration.optimisers.cross_entropy import _truncated_normal
+    from calibration.optimisers.cross_entropy import truncated_normal
     rng = np.random.default_rng(0)
     mean, std = np.array([0.0, 1.0, 5.0]), np.array([1.0, 2.0, 0.5])
     low, high = np.array([-0.5, 0.9, 0.0]), np.array([2.0, np.inf, 5.2])
-    X = _truncated_normal(rng, mean, std, low, high, 200_000)
+    X = truncated_normal(rng, mean, std, low, high, 200_000)
     assert np.all(X >= low) and np.all(X <= high)
     a, b = (low - mean) / std, (high - mean) / std
     import scipy.stats

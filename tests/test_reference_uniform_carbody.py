@@ -3,7 +3,7 @@ checked against closed forms and against exudyn's own whole-system eigen-analysi
 import numpy as np
 import scipy.sparse.linalg as sla
 
-from reference_models.uniform_carbody import (N_RIGID, LatticeSettings, UniformShell, _elastic_modes,
+from reference_models.uniform_carbody import (N_RIGID, LatticeSettings, UniformShell, elastic_modes,
                                               build_exudyn_system, build_lattice, build_panel_lattice,
                                               lattice_matrices)
 
@@ -30,7 +30,7 @@ def test_lattice_mass_and_membrane_stiffness_are_the_shells():
 
 def test_sparse_assembly_equals_exudyn_whole_system_eigenvalues():
     shell, settings, lattice, (M, K, _) = _coarse()
-    f, _ = _elastic_modes(K, M, 6)
+    f, _ = elastic_modes(K, M, 6)
     mbs, _, _ = build_exudyn_system(shell, lattice, settings)
     w, _ = mbs.ComputeODE2Eigenvalues(convert2Frequencies=True)
     assert np.allclose(f, w[N_RIGID:N_RIGID + 6], rtol=1e-5)  # the weld penalty's conditioning

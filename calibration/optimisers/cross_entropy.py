@@ -90,7 +90,7 @@ class CEResult:
     history: list = field(repr=False, default_factory=list)  # per generation: mean, std, C_g, elite best
 
 
-def _truncated_normal(rng, mean, std, low, high, n):
+def truncated_normal(rng, mean, std, low, high, n):
     """(n, d) draws from normals (mean, std) truncated to [low, high], by the inverse CDF.
 
     Each column is drawn on the side of the normal where the CDF keeps its precision (the
@@ -128,7 +128,7 @@ def cross_entropy(objective, parameters: tuple[SearchParameter, ...], rng: np.ra
     restarts, history, evaluations = 0, [], 0
     converged = False
     for g in range(settings.max_generations):
-        X = _truncated_normal(rng, mu, sd, low, high, settings.population)
+        X = truncated_normal(rng, mu, sd, low, high, settings.population)
         values = np.asarray(objective(X), float)
         evaluations += len(X)
         values = np.where(np.isfinite(values), values, np.inf)

@@ -164,7 +164,7 @@ def _local_operators(model, body, points, rotation=False) -> tuple[np.ndarray, n
     return idx, np.stack([rb.operator(q)[:, free] for q in points])
 
 
-def _local_operator(model, body, point, rotation=False, patch=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+def local_operator(model, body, point, rotation=False, patch=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """(dof indices, 3 x len(indices) operator) of a material point of ``body``, or the
     mean over a patch of that size around it (panels only)."""
     if not any(patch) or body == "ground" or body not in {p.name for p in model.vehicle.panels}:
@@ -186,7 +186,7 @@ def _local_operator(model, body, point, rotation=False, patch=(0.0, 0.0)) -> tup
 
 
 def _point_operator(model, body, point, rotation=False) -> np.ndarray:
-    idx, G = _local_operator(model, body, point, rotation)
+    idx, G = local_operator(model, body, point, rotation)
     out = np.zeros((3, model.n_dof))
     out[:, idx] = G
     return out
@@ -194,8 +194,8 @@ def _point_operator(model, body, point, rotation=False) -> np.ndarray:
 
 def _difference(model, body_a, point_a, body_b, point_b, rotation=False, patch=(0.0, 0.0)):
     """(indices, operator) of the relative motion of two material points."""
-    ia, Ga = _local_operator(model, body_a, point_a, rotation, patch)
-    ib, Gb = _local_operator(model, body_b, point_b, rotation)
+    ia, Ga = local_operator(model, body_a, point_a, rotation, patch)
+    ib, Gb = local_operator(model, body_b, point_b, rotation)
     idx = np.union1d(ia, ib)
     D = np.zeros((3, idx.size))
     D[:, np.searchsorted(idx, ia)] += Ga
@@ -319,7 +319,7 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
         M.add(idx, np.diag([rb.mass] * 3 + list(rb.inertia))[np.ix_(free, free)])
 
     for pm in vehicle.masses:
-        idx, G = _local_operator(model, pm.panel, pm.point, patch=pm.patch)
+        idx, G = local_operator(model, pm.panel, pm.point, patch=pm.patch)
         M.add(idx, pm.mass * (G.T @ G))
 
     for jt in vehicle.joints:

@@ -28,7 +28,7 @@ import scipy.linalg
 import scipy.sparse.linalg
 
 from ...signals.modal import count_modes_below
-from .assembly import RIGID_DOFS, BoxModel, _local_operator, assemble
+from .assembly import RIGID_DOFS, BoxModel, local_operator, assemble
 from .shinkansen import free_carbody
 
 RIGID_HZ = 0.05  # carbody modes below this are its six rigid-body motions
@@ -135,7 +135,7 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
     seats = []
     for ln in vehicle.links:
         if ln.body_a in panels:
-            idx, G = _local_operator(model, ln.body_a, ln.point_a, patch=ln.patch)
+            idx, G = local_operator(model, ln.body_a, ln.point_a, patch=ln.patch)
             for d in range(3):
                 if ln.k[d] or ln.c[d]:
                     f = np.zeros(n_cb)
@@ -157,7 +157,7 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
         if body == "ground":
             return out
         if body in panels:
-            idx, G = _local_operator(model, body, point, patch=patch)
+            idx, G = local_operator(model, body, point, patch=patch)
             out[:, :n_eta] = G @ V[idx]
             return out
         rb = next(b for b in bodies if b.name == body)
