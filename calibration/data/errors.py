@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 #: At most this many characters of a file's content (a cell, a header, a TOML value) are
-#: quoted in a message, so a message never echoes whole lines of an arbitrary file.
+#: quoted in a message, so a message never echoes whole lines of an arbitrary file. A
+#: choice, not a standard: enough to recognise a cell or a TOML value at a glance.
 EXCERPT_CHARS = 60
 _SURROGATES = (0xD800, 0xDFFF)  # undecodable bytes of a file name (os.fsdecode)
 
@@ -16,6 +17,12 @@ def excerpt(text, limit: int = EXCERPT_CHARS) -> str:
         s = s[:limit - 1] + "…"
     return "".join(c if c.isprintable() and not _SURROGATES[0] <= ord(c) <= _SURROGATES[1]
                    else c.encode("unicode_escape", "backslashreplace").decode("ascii") for c in s)
+
+
+def quoted(value) -> str:
+    """A value read from an input file (a TOML value, a band name) as a message quotes it:
+    its repr, shortened as :func:`excerpt` does."""
+    return excerpt(repr(value))
 
 
 def _printable(text) -> str:

@@ -23,8 +23,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import tomli_w
 
-from .campaign import NAME_RE, TRACK_BANDS, CampaignMeta, read_input_file
 from .errors import CampaignError, InputError
+from .files import read_input_file
+from .metadata import NAME_RE, CampaignMeta
+from .tracks import TRACK_BANDS
 
 #: The ``format`` key of every JSON result, by kind. A reader accepts a file without the key
 #: (written before it existed) and refuses one it does not know.

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import math
 
-STANDARD_GRAVITY = 9.80665  # [m/s^2]
+STANDARD_GRAVITY = 9.80665  # [m/s^2] g_n, exact by definition (3rd CGPM, 1901): the g of a sensor unit
 
-# unit -> (quantity family, factor to SI)
+# unit -> (quantity family, factor to SI); the factors are the units' exact SI definitions
 UNITS: dict[str, tuple[str, float]] = {
     "g": ("acceleration", STANDARD_GRAVITY),
     "m/s^2": ("acceleration", 1.0),
