@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from calibration.data.campaign import open_campaign  # noqa: E402
-from calibration.diagnosis.diagnose import diagnose  # noqa: E402
+from calibration.diagnosis.in_service import diagnose_in_service  # noqa: E402
 from calibration.truth.effects import EFFECTS, EffectChoice, effect_spec  # noqa: E402
 from calibration.truth.in_service import InServiceSettings, synth_in_service  # noqa: E402
 from calibration.truth.track import LineSpec  # noqa: E402
@@ -51,16 +51,14 @@ def run_case(case: dict) -> dict:
     t0 = time.perf_counter()
     truth = synth_in_service(root, seed=case["seed"], settings=settings, effect=effect, fmt="parquet")
     t1 = time.perf_counter()
-    result = diagnose(open_campaign(root))
+    diag = diagnose_in_service(open_campaign(root))
     t2 = time.perf_counter()
-    result.pop("_plot")
     shutil.rmtree(root, ignore_errors=True)
-    return {**case, "diagnosed": result["cause"], "gain": result["gain"],
-            "extension": result["extension"] and result["extension"]["parameters"],
+    return {**case, "diagnosed": diag.cause, "gain": diag.to_json()["gain"],
+            "extension": diag.best and diag.best.parameters,
             "truth_details": truth["effect"] and truth["effect"]["details"],
-            "hypotheses": {h["name"]: h["gain"] for h in result["hypotheses"]},
-            "systematic_left": {h["name"]: h["systematic_left"] for h in result["hypotheses"]
-                                if h["systematic_left"] is not None},
+            "hypotheses": {h.name: h.gain for h in diag.hypotheses},
+            "systematic_left": {h.name: h.systematic_left for h in diag.hypotheses if h.systematic_left is not None},
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
 

@@ -20,11 +20,13 @@ import scipy.signal
 
 from railcal.cli import main
 from calibration.data.campaign import open_campaign
-from calibration.diagnosis.diagnose import _losses, diagnose, reductions
-from calibration.diagnosis.records import Record, RecordSettings, band_edges, statistics
-from calibration.diagnosis.response import channel_power, residual_cross_spectrum, residual_power
-from calibration.diagnosis.track import TrackSettings, fit_track, transmissibility2
-from calibration.diagnosis.wheels import fit_polygon
+from calibration.diagnosis.in_service import DiagnosisSettings, diagnose_in_service
+from calibration.diagnosis.in_service.hypotheses import heldout_losses, reductions
+from calibration.diagnosis.in_service.records import Record, RecordSettings, Statistics, band_edges, statistics
+from calibration.diagnosis.in_service.response import (ParamRange, channel_power, residual_cross_spectrum,
+                                                       residual_power)
+from calibration.diagnosis.in_service.track import TrackSettings, fit_track, transmissibility2
+from calibration.diagnosis.in_service.wheels import WheelSettings, fit_polygon
 from calibration.models.assembly import beam_bending_shape
 from calibration.models.car2d import (CarExtras, Output, build_car, damped_modes, frequency_response, state_space,
                                       undamped_modes)
@@ -143,7 +145,7 @@ def test_high_frequency_input_does_not_leak_into_the_low_bands_of_an_exact_model
     exact model must leave no residual in the low bands: with rectangular windows the
     leaked high-frequency input, multiplied by the low bands' large gain, is predicted
     response that is not there (the false alarms of effect-free seeds 1760 and 1762)."""
-    s = RecordSettings(taper=taper, overlap=overlap)
+    s = RecordSettings(window=taper, overlap_fraction=overlap)
     rng = np.random.default_rng(3)
     n = int(600 * s.fs)
     high = scipy.signal.butter(4, [20.0, 80.0], btype="bandpass", fs=s.fs, output="sos")
@@ -159,11 +161,36 @@ def test_high_frequency_input_does_not_leak_into_the_low_bands_of_an_exact_model
     assert (nrp > 0.3) if leaks else (nrp < 0.01)
 
 
-def test_record_settings_refuse_an_unknown_taper_and_a_full_overlap():
+def test_record_settings_refuse_an_unknown_window_and_a_full_overlap():
     with pytest.raises(ValueError, match="nope"):
-        RecordSettings(taper="nope")
-    with pytest.raises(ValueError, match="overlap"):
-        RecordSettings(overlap=1.0)
+        RecordSettings(window="nope")
+    with pytest.raises(ValueError, match="overlap_fraction"):
+        RecordSettings(overlap_fraction=1.0)
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: RecordSettings(segment_s=0.0), "RecordSettings.segment_s must be positive"),
+    (lambda: RecordSettings(fs=-200.0), "RecordSettings.fs must be positive"),
+    (lambda: RecordSettings(band=(60.0, 0.3)), "RecordSettings.band"),
+    (lambda: TrackSettings(f_t_range=(100.0, 8.0)), "TrackSettings.f_t_range"),
+    (lambda: TrackSettings(zeta_range=(0.0, 0.6)), "TrackSettings.zeta_range"),
+    (lambda: WheelSettings(step_m=0.0), "WheelSettings.step_m must be positive"),
+    (lambda: WheelSettings(wavelengths_m=(5.0, 0.4)), "WheelSettings.wavelengths_m"),
+    (lambda: WheelSettings(wavelengths_m=(0.05, 5.0)), "2 step_m <= shortest"),  # beyond the grid's Nyquist
+    (lambda: DiagnosisSettings(min_gain=-0.1), "DiagnosisSettings.min_gain must be positive"),
+    (lambda: DiagnosisSettings(coherence_alarm=1.5), "DiagnosisSettings.coherence_alarm"),
+    (lambda: DiagnosisSettings(fit_leading=0), "DiagnosisSettings.fit_leading"),
+    (lambda: ParamRange("bending_hz", 18.0, 4.0), "'bending_hz': low must be below high"),
+    (lambda: ParamRange("dx", -2.5, 2.5), "'dx': a log range needs low > 0"),
+])
+def test_settings_refuse_impossible_values_naming_the_field(make, field):
+    with pytest.raises(ValueError, match=field.replace("(", r"\(")):
+        make()
+
+
+def test_settings_are_keyword_only():
+    with pytest.raises(TypeError):
+        RecordSettings(200.0, 60.0)
 
 
 def test_band_edges_are_contiguous_and_at_least_the_minimum_width():
@@ -171,17 +198,15 @@ def test_band_edges_are_contiguous_and_at_least_the_minimum_width():
     e = band_edges(s)
     w = np.diff(e)
     assert e[0] == s.band[0] and e[-1] >= s.band[1]
-    assert np.all(w >= s.min_bins / s.window - 1e-12) and np.all(w >= s.rel_width * e[:-1] - 1e-12)
+    assert np.all(w >= s.min_bins / s.segment_s - 1e-12) and np.all(w >= s.rel_width * e[:-1] - 1e-12)
 
 
 def test_track_fit_recovers_a_resonance_from_spectra_at_several_speeds():
-    from calibration.diagnosis.records import Statistics
-
     s = RecordSettings()
     edges = band_edges(s)
     f = np.sqrt(edges[1:] * edges[:-1])
     bw = np.diff(edges)
-    st = Statistics(("axle1_mean", "axle2_mean"), edges, f, s.window)
+    st = Statistics(("axle1_mean", "axle2_mean"), edges, f, s.segment_s)
     for vb in (20.0, 27.5, 35.0, 42.5):
         v = vb + 1.25
         kappa = f / v
@@ -191,9 +216,9 @@ def test_track_fit_recovers_a_resonance_from_spectra_at_several_speeds():
         S[:, 0, 0] = S[:, 1, 1] = P * bw * 600.0
         st.S[("run", vb)] = S
         st.seconds[("run", vb)] = 600.0
-    fit = fit_track(st, set(st.S), True, TrackSettings())
+    fit = fit_track(st, set(st.S), flexible=True, settings=TrackSettings())
     assert fit.f_t == pytest.approx(31.0, rel=0.02) and fit.zeta == pytest.approx(0.15, rel=0.1)
-    assert fit.error_train < 0.01 * fit_track(st, set(st.S), False).error_train
+    assert fit.error_train < 0.01 * fit_track(st, set(st.S), flexible=False).error_train
 
 
 def test_wheel_polygon_fit_recovers_wavelength_amplitude_and_wheelset():
@@ -219,10 +244,10 @@ def test_a_loss_counts_when_large_against_the_channel_and_against_the_gain():
     and raised the gyro's from 0.0088 to 0.0099 (12 %, a thousandth of its signal): no
     loss. The same 12 % on a channel whose error is comparable to the gain is one."""
     names = ("gyro", "carbody_centre")
-    assert _losses(names, [0.0088, 0.72], [0.0099, 0.07], 1, 0.05) == []
-    assert _losses(names, [0.5, 0.72], [0.56, 0.07], 1, 0.05) == ["gyro"]
-    assert _losses(names, [0.0088, 0.72], [0.0092, 0.70], 1, 0.05) == []  # under 5 % of its own error
-    assert _losses(names, [0.0, 0.72], [0.01, 0.07], 1, 0.05) == []  # no held-out signal: nothing to lose
+    assert heldout_losses(names, [0.0088, 0.72], [0.0099, 0.07], 1, 0.05) == []
+    assert heldout_losses(names, [0.5, 0.72], [0.56, 0.07], 1, 0.05) == ["gyro"]
+    assert heldout_losses(names, [0.0088, 0.72], [0.0092, 0.70], 1, 0.05) == []  # under 5 % of its own error
+    assert heldout_losses(names, [0.0, 0.72], [0.01, 0.07], 1, 0.05) == []  # no held-out signal: nothing to lose
 
 
 def test_effect_magnitudes_outside_their_range_are_refused():
@@ -259,10 +284,10 @@ def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
     magnitude = spec.magnitude_range[end]
     root = _campaign(tmp_path / "c", SEEDS[(name, end)], EffectChoice(spec, magnitude),
                      journeys=4 if name == "track_flexibility" else 3)
-    result = diagnose(open_campaign(root))
-    assert result["cause"] == name, result["evidence"]["summary"]
-    assert result["gain"]["reduction"] >= 0.3
-    p = result["extension"]["parameters"]
+    diag = diagnose_in_service(open_campaign(root))
+    assert diag.cause == name, diag.summary
+    assert diag.best.gain >= 0.3
+    p = diag.best.parameters
     if name == "carbody_bending":
         assert p["bending_hz"] == pytest.approx(magnitude, rel=0.03)
     elif name == "sensor_offset":
@@ -278,17 +303,20 @@ def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [75, 76])
 def test_effect_free_campaign_is_diagnosed_none(tmp_path, seed):
-    result = diagnose(open_campaign(_campaign(tmp_path / "c", seed, None)))
-    assert result["cause"] == "none", result["evidence"]["summary"]
-    assert result["extension"] is None and result["gain"] is None
+    diag = diagnose_in_service(open_campaign(_campaign(tmp_path / "c", seed, None)))
+    assert diag.cause == "none", diag.summary
+    assert diag.best is None
+    written = diag.to_json()
+    assert written["extension"] is None and written["gain"] is None
+    assert written["cause"] == "none" and written["evidence"]["summary"] == list(diag.summary)
 
 
 @pytest.mark.slow
 def test_effect_outside_the_catalogue_is_unexplained_with_its_evidence(tmp_path):
     spec = UNCATALOGUED["bogie_equipment"]
-    result = diagnose(open_campaign(_campaign(tmp_path / "c", 77, EffectChoice(spec, 400.0))))
-    assert result["cause"] == "unexplained", result["evidence"]["summary"]
-    peaks = [p["frequency_hz"] for p in result["evidence"]["channels"]["bogie1_acc_z"]["peaks"]]
+    diag = diagnose_in_service(open_campaign(_campaign(tmp_path / "c", 77, EffectChoice(spec, 400.0))))
+    assert diag.cause == "unexplained", diag.summary
+    peaks = [p["frequency_hz"] for p in diag.evidence.channels["bogie1_acc_z"]["peaks"]]
     truth = json.loads((tmp_path / "c.truth.json").read_text())["effect"]["details"]["mount_hz"]
     assert any(abs(f / truth - 1) < 0.1 for f in peaks), peaks
 
@@ -300,14 +328,14 @@ def test_an_extension_that_gains_without_explaining_the_systematic_residual_is_n
     the residual stays as coherent with the rail input as before: a rescaling of what the
     model cannot produce, not the cause."""
     spec = UNCATALOGUED["bogie_equipment"]
-    result = diagnose(open_campaign(_campaign(tmp_path / "c", 1572, EffectChoice(spec, 554.5953114224303),
-                                              journeys=4)))
-    assert result["cause"] == "unexplained", result["evidence"]["summary"]
-    sensor = {h["name"]: h for h in result["hypotheses"]}["sensor_offset"]
-    assert sensor["penalised_gain"] >= result["settings"]["min_gain"]
-    assert not sensor["losses"]
-    assert sensor["systematic_left"] > 2 * result["settings"]["max_systematic_left"]
-    assert any(line.startswith("sensor_offset gains") for line in result["evidence"]["summary"])
+    diag = diagnose_in_service(open_campaign(_campaign(tmp_path / "c", 1572, EffectChoice(spec, 554.5953114224303),
+                                                       journeys=4)))
+    assert diag.cause == "unexplained", diag.summary
+    sensor = {h.name: h for h in diag.hypotheses}["sensor_offset"]
+    assert sensor.penalised_gain >= diag.settings.min_gain
+    assert not sensor.losses
+    assert sensor.systematic_left > 2 * diag.settings.max_systematic_left
+    assert any(line.startswith("sensor_offset gains") for line in diag.summary)
 
 
 @pytest.mark.slow

@@ -1,12 +1,12 @@
 """Wheel-fixed excitation: what one wheelset of the leading bogie carries and the other not.
 
-The consistency channel (:mod:`calibration.diagnosis.records`) removes the rail: on round
-wheels it is sensor noise. Divided by v^2 and resampled to distance it is a *rail
-curvature* signal [1/m] in which anything fixed to a wheel's circumference (a polygonal
-wheel, a wheel flat's periodic part) is a line at a fixed wavenumber, whatever the speed,
-while sensor noise is spread. The extension (:class:`WheelPolygon`) is a radius deviation
+The consistency channel (:mod:`.records`) removes the rail: on round wheels it is sensor
+noise. Divided by v^2 and resampled to distance it is a *rail curvature* signal [1/m] in
+which anything fixed to a wheel's circumference (a polygonal wheel, a wheel flat's
+periodic part) is a line at a fixed wavenumber, whatever the speed, while sensor noise is
+spread. The extension (:class:`WheelPolygon`) is a radius deviation
 A cos(2 pi s / lambda + phi) on one wheelset; since no sensor tells the wheel's angle, the
-phase is a nuisance re-estimated per distance window, the amplitude and wavelength are
+phase is a nuisance re-estimated per distance segment, the amplitude and wavelength are
 the extension's parameters (fitted on training runs).
 
 Which wheelset carries it: the line's power in that wheelset's own axle-box spectrum
@@ -22,13 +22,23 @@ import scipy.ndimage
 from .records import Record
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class WheelSettings:
-    ds: float = 0.05  # [m] distance grid
-    window: float = 100.0  # [m] distance window (phase re-estimated per window)
-    wavelengths: tuple[float, float] = (0.4, 5.0)  # [m] searched
-    floor_width: float = 0.25  # relative width of the running-median floor in wavenumber
-    significance: float = 3.0  # line power / floor for a line to count as evidence
+    """The distance grid and segments of the wavenumber spectra, and the wavelengths searched."""
+
+    step_m: float = 0.05  # [m] distance grid step
+    segment_m: float = 100.0  # [m] distance segment (Hann; phase re-estimated per segment)
+    wavelengths_m: tuple[float, float] = (0.4, 5.0)  # [m] wavelengths searched (shortest, longest)
+    floor_width: float = 0.25  # width of the running-median floor, relative to the median wavenumber
+
+    def __post_init__(self):
+        for name in ("step_m", "segment_m", "floor_width"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"WheelSettings.{name} must be positive, got {getattr(self, name)}")
+        lo, hi = self.wavelengths_m
+        if not 2 * self.step_m <= lo < hi <= self.segment_m:
+            raise ValueError(f"WheelSettings.wavelengths_m must be (shortest, longest) with 2 step_m <= shortest "
+                             f"< longest <= segment_m, got {self.wavelengths_m}")
 
 
 def _distance_series(rec: Record, row: int, ds: float):
@@ -38,10 +48,11 @@ def _distance_series(rec: Record, row: int, ds: float):
     return s, x
 
 
-def _windows(records, row, settings: WheelSettings):
-    n = int(round(settings.window / settings.ds))
+def _segments(records, row, settings: WheelSettings):
+    """(run id, distance [m], de-meaned channel ``row`` / v^2) per whole segment of each record."""
+    n = int(round(settings.segment_m / settings.step_m))
     for rec in records:
-        s, x = _distance_series(rec, row, settings.ds)
+        s, x = _distance_series(rec, row, settings.step_m)
         for a in range(0, x.size - n + 1, n):
             yield rec.run_id, s[a:a + n], x[a:a + n] - x[a:a + n].mean()
 
@@ -49,8 +60,8 @@ def _windows(records, row, settings: WheelSettings):
 @dataclass(frozen=True)
 class LineSpectrum:
     wavenumber: np.ndarray  # [1/m]
-    power: np.ndarray  # mean power per bin (consistency channel)
-    floor: np.ndarray
+    power: np.ndarray  # [(1/m)^2] mean power per bin (consistency channel, curvature units)
+    floor: np.ndarray  # running median of ``power``
     axle1: np.ndarray  # the same for the two axle-box means
     axle2: np.ndarray
 
@@ -58,23 +69,24 @@ class LineSpectrum:
     def ratio(self) -> np.ndarray:
         return self.power / np.maximum(self.floor, 1e-300)
 
-    def strongest(self, settings: WheelSettings):
+    def strongest(self, settings: WheelSettings) -> tuple[int, float]:
+        """(bin, line power over floor) of the strongest line within the searched wavelengths."""
         k = self.wavenumber
-        inside = (k >= 1 / settings.wavelengths[1]) & (k <= 1 / settings.wavelengths[0])
+        inside = (k >= 1 / settings.wavelengths_m[1]) & (k <= 1 / settings.wavelengths_m[0])
         i = int(np.flatnonzero(inside)[np.argmax(self.ratio[inside])])
         return i, float(self.ratio[i])
 
 
 def line_spectrum(records: list[Record], rows: dict, runs, settings: WheelSettings = WheelSettings()) -> LineSpectrum:
-    """Mean wavenumber power spectra (Hann windows) of the consistency channel and the two
+    """Mean wavenumber power spectra (Hann segments) of the consistency channel and the two
     axle-box means over the records of ``runs``. ``rows``: channel name -> row in Record.z."""
-    n = int(round(settings.window / settings.ds))
+    n = int(round(settings.segment_m / settings.step_m))
     win = np.hanning(n)
-    k = np.fft.rfftfreq(n, settings.ds)
+    k = np.fft.rfftfreq(n, settings.step_m)
     out = {}
     for name in ("consistency", "axle1_mean", "axle2_mean"):
         acc, count = np.zeros(k.size), 0
-        for run_id, _, x in _windows([r for r in records if r.run_id in runs], rows[name], settings):
+        for run_id, _, x in _segments([r for r in records if r.run_id in runs], rows[name], settings):
             acc += np.abs(np.fft.rfft(x * win)) ** 2
             count += 1
         out[name] = acc / max(count, 1)
@@ -100,18 +112,22 @@ class WheelPolygon:
                 "radius_amplitude_m": self.radius_amplitude, "line_over_floor": self.line_ratio}
 
 
-def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettings(), pad: int = 16) -> WheelPolygon:
+def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettings(), *,
+                pad: int = 16) -> WheelPolygon:
+    """The strongest wheel-fixed line of the training runs' consistency channel as a wheel
+    polygon: its wavenumber refined on spectra zero-padded ``pad`` times, its amplitude the
+    rms over segments, its wheelset the one whose axle boxes carry more of it."""
     spec = line_spectrum(records, rows, train_runs, settings)
     i, ratio = spec.strongest(settings)
-    # refine the wavenumber on the windows' mean power, zero-padded ``pad`` times (parabolic
-    # interpolation of the log power at the peak), then the amplitude at it per window
-    n = int(round(settings.window / settings.ds))
+    # refine the wavenumber on the segments' mean power, zero-padded ``pad`` times (parabolic
+    # interpolation of the log power at the peak), then the amplitude at it per segment
+    n = int(round(settings.segment_m / settings.step_m))
     win = np.hanning(n)
-    k_fine = np.fft.rfftfreq(pad * n, settings.ds)
+    k_fine = np.fft.rfftfreq(pad * n, settings.step_m)
     lo, hi = np.searchsorted(k_fine, [spec.wavenumber[max(i - 1, 0)], spec.wavenumber[i + 1]])
     power = np.zeros(hi - lo)
     chosen = [r for r in records if r.run_id in train_runs]
-    for _, s, x in _windows(chosen, rows["consistency"], settings):
+    for _, s, x in _segments(chosen, rows["consistency"], settings):
         power += np.abs(np.fft.rfft(x * win, pad * n)[lo:hi]) ** 2
     j = int(np.argmax(power))
     k = k_fine[lo + j]
@@ -119,7 +135,7 @@ def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettin
         a, b, c = np.log(power[j - 1:j + 2])
         k += 0.5 * (a - c) / (a - 2 * b + c) * (k_fine[1] - k_fine[0])
     amps = [2 * abs(np.mean(x * np.exp(-2j * np.pi * k * s)))
-            for _, s, x in _windows(chosen, rows["consistency"], settings)]
+            for _, s, x in _segments(chosen, rows["consistency"], settings)]
     amp = float(np.sqrt(np.mean(np.square(amps)))) if amps else 0.0
     # which wheelset: the line's excess power in that wheelset's own axle-box spectrum
     wheelset = 1 if spec.axle1[i] >= spec.axle2[i] else 2
@@ -128,10 +144,10 @@ def fit_polygon(records, rows, train_runs, settings: WheelSettings = WheelSettin
 
 
 def polygon_error(records, rows, runs, poly: WheelPolygon | None, settings: WheelSettings = WheelSettings()):
-    """Mean square of the consistency channel (curvature units) over the windows of ``runs``,
-    after removing the polygon's line (amplitude fixed, phase fitted per window)."""
+    """Mean square of the consistency channel [(1/m)^2] over the segments of ``runs``,
+    after removing the polygon's line (amplitude fixed, phase fitted per segment)."""
     tot, n = 0.0, 0
-    for _, s, x in _windows([r for r in records if r.run_id in runs], rows["consistency"], settings):
+    for _, s, x in _segments([r for r in records if r.run_id in runs], rows["consistency"], settings):
         if poly is not None:
             k = 1 / poly.wavelength
             c = np.mean(x * np.exp(-2j * np.pi * k * s))

@@ -1,4 +1,4 @@
-"""What the diagnosis reads from an in-service campaign: gap-free records of rail input,
+"""What the in-service diagnosis reads from a campaign: gap-free records of rail input,
 response and axle-box consistency, and their band-averaged spectral statistics.
 
 The model's input is measured: wheelsets on a rigid rail move with the rail, so the
@@ -15,20 +15,18 @@ runs over the rail wheelset 1 ran over 2 L_b earlier, so on a rigid rail with ro
 wheels ``axle2(t) - (v(t)/v(t*))^2 axle1(t*)`` with d(t*) = d(t) - 2 L_b is noise. What
 one wheelset carries and the other does not (an out-of-round wheel) stays in it.
 
-Records are resampled to ``fs`` (200 Hz by default) and cut into Hann windows of
-``window`` seconds overlapping by half. Not rectangular ones: their leakage falls off only
-as 1/f^2, and the axle boxes carry metres per second squared of sleeper and weld content
-where the two wheelsets are unrelated, so a rectangular window moves that content into
-the lowest bands of the wheelsets' difference, where the model's gain (a bogie's pitch
-rate per unit rail acceleration goes as 1/f) is largest. The prediction then holds power
-the response does not: on one effect-free campaign (seed 1760) the model's bogie pitch at
-0.3-0.6 Hz exceeded the measured pitch, its residual was 0.45 coherent with the input and
-the diagnosis raised a false alarm; the axle-box consistency channel, which cancels the
-rail, has no such content, so the input-noise estimate missed it. With the taper the same
-campaign's residual coherence is 0.006. The taper also softens the edges of each window,
-where the response to input before the window is not predicted. Each window stands for its
-hop in the seconds kept, so a cell's seconds are its data's (a record shorter than
-``window`` plus a hop counts for a little less). Cross-spectra of all channels are summed
+Records are resampled to ``fs`` (200 Hz by default) and cut into segments of
+``segment_s`` seconds (a Hann ``window`` by default) overlapping by ``overlap_fraction``.
+Not rectangular segments: their leakage falls off only as 1/f^2, and the axle boxes carry
+metres per second squared of sleeper and weld content where the two wheelsets are
+unrelated, so a rectangular window moves that content into the lowest bands of the
+wheelsets' difference, where the model's gain (a bogie's pitch rate per unit rail
+acceleration goes as 1/f) is largest: the prediction then holds power the response does
+not, and the residual reads as coherent with the input (the false alarms this caused are
+in docs/CHANGELOG.md, "Hann windows"). The taper also softens the edges of each segment,
+where the response to input before the segment is not predicted. Each segment stands for
+its hop in the seconds kept, so a cell's seconds are its data's (a record shorter than a
+segment plus a hop counts for a little less). Cross-spectra of all channels are summed
 over bins into bands of relative width ``rel_width`` (and at least ``min_bins`` bins): a
 linear model's residual energy is then a quadratic form in these sums, so fitting a model
 costs a few hundred small matrix products, whatever the campaign's length. Sums are kept
@@ -44,40 +42,49 @@ import numpy as np
 import scipy.interpolate
 import scipy.signal
 
-from ..data.campaign import Campaign, Sensor
-from ..data.errors import CampaignError
-from ..models.car2d import Output
+from ...data.campaign import Campaign, Sensor
+from ...data.errors import CampaignError
+from ...models.car2d import Output
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RecordSettings:
-    fs: float = 200.0  # [Hz] analysis rate
-    window: float = 60.0  # [s]
-    taper: str = "hann"  # window function (scipy.signal.get_window name)
-    overlap: float = 0.5  # share of a window overlapping the next
-    band: tuple[float, float] = (0.3, 60.0)  # [Hz]
+    """How records are read and turned into band statistics (scipy.signal's meanings)."""
+
+    fs: float = 200.0  # [Hz] analysis sampling rate
+    segment_s: float = 60.0  # [s] length of one FFT segment
+    window: str = "hann"  # scipy.signal.get_window name of the segments' taper
+    overlap_fraction: float = 0.5  # share of a segment overlapping the next, in [0, 1)
+    band: tuple[float, float] = (0.3, 60.0)  # [Hz] analysis band
     rel_width: float = 0.012  # band width relative to its centre frequency
-    min_bins: int = 2
+    min_bins: int = 2  # least periodogram bins in a band
     speed_bin: float = 1.0  # [m/s]: narrow, so lines fixed in wavenumber stay sharp in each bin
-    min_length: float = 80.0  # [s] shortest usable gap-free stretch
+    min_length_s: float = 80.0  # [s] shortest usable gap-free stretch
 
     def __post_init__(self):
-        if not 0.0 <= self.overlap < 1.0:
-            raise ValueError(f"RecordSettings.overlap must be in [0, 1), got {self.overlap}")
-        scipy.signal.get_window(self.taper, 8)  # an unknown window name raises here, naming it
+        for name in ("fs", "segment_s", "rel_width", "speed_bin", "min_length_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"RecordSettings.{name} must be positive, got {getattr(self, name)}")
+        if not 0.0 <= self.overlap_fraction < 1.0:
+            raise ValueError(f"RecordSettings.overlap_fraction must be in [0, 1), got {self.overlap_fraction}")
+        if not 0 < self.band[0] < self.band[1]:
+            raise ValueError(f"RecordSettings.band must be (low, high) with 0 < low < high [Hz], got {self.band}")
+        if self.min_bins < 1:
+            raise ValueError(f"RecordSettings.min_bins must be at least 1, got {self.min_bins}")
+        scipy.signal.get_window(self.window, 8)  # an unknown window name raises here, naming it
 
 
 @dataclass(frozen=True)
 class Layout:
-    """Which sensor plays which part. ``inputs``: rail accelerations under wheelsets 1-4,
-    each (measured channel names or None, delay source index). ``responses``: model outputs
-    (declared positions). ``consistency``: (front axle channels, rear axle channels)."""
+    """Which sensor plays which part: the axle-box accelerometers of each wheelset (the rail
+    input; a wheelset without any takes its leading counterpart's, delayed), and the bogie
+    and carbody sensors the model predicts."""
 
-    axle: dict  # "axle1".. -> tuple of channel names
-    responses: tuple[Output, ...]
-    response_sensors: tuple[Sensor, ...]
-    L_v: float
-    L_b: float
+    axle: dict  # "axle1".. "axle4" -> tuple of channel names (empty: no sensor on that wheelset)
+    responses: tuple[Output, ...]  # model outputs at the sensors' declared positions
+    response_sensors: tuple[Sensor, ...]  # the campaign's sensors behind ``responses``
+    L_v: float  # [m] bogie semi-spacing
+    L_b: float  # [m] bogie semi-wheelbase
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -94,6 +101,8 @@ class Layout:
 
 
 def layout(campaign: Campaign) -> Layout:
+    """The campaign's sensors sorted into rail input and responses (:class:`CampaignError`
+    naming campaign.toml's key when the diagnosis cannot work with them)."""
     meta = campaign.meta
     toml = campaign.root / "campaign.toml"
     if meta.kind != "in_service":
@@ -122,7 +131,7 @@ def layout(campaign: Campaign) -> Layout:
     return Layout(axle, tuple(responses), tuple(sensors), float(L_v), float(L_b))
 
 
-@dataclass
+@dataclass(frozen=True)
 class Record:
     """One gap-free stretch at the analysis rate; rows of ``z`` follow ``Layout.channels``."""
 
@@ -146,8 +155,10 @@ def _delayed(x: np.ndarray, t: np.ndarray, d: np.ndarray, v: np.ndarray, delay: 
     return out, i0
 
 
-def read_records(campaign: Campaign, lay: Layout, settings: RecordSettings = RecordSettings(),
+def read_records(campaign: Campaign, lay: Layout, settings: RecordSettings = RecordSettings(), *,
                  runs=None, progress=None) -> list[Record]:
+    """The gap-free stretches (every used sensor valid for ``settings.min_length_s`` or
+    more) of ``runs`` (default: all), at ``settings.fs``, rows in ``lay.channels`` order."""
     fs_in = campaign.meta.sampling_rate
     ratio = Fraction(settings.fs / fs_in).limit_denominator(200)
     records = []
@@ -167,7 +178,7 @@ def read_records(campaign: Campaign, lay: Layout, settings: RecordSettings = Rec
             for s0, s1 in zip(edges[::2], edges[1::2]):
                 i0, i1 = a + s0, a + s1
                 t = run.time[i0:i1]
-                if t.size < 4 or t[-1] - t[0] < settings.min_length:
+                if t.size < 4 or t[-1] - t[0] < settings.min_length_s:
                     continue
                 rec = _record(run, i0, i1, lay, fs_in, ratio, settings)
                 if rec is not None:
@@ -176,7 +187,7 @@ def read_records(campaign: Campaign, lay: Layout, settings: RecordSettings = Rec
         if progress:
             progress(f"{run_id}: {n_rec} gap-free records")
     if not records:
-        raise CampaignError(f"no gap-free stretch of {settings.min_length:g} s with every sensor valid",
+        raise CampaignError(f"no gap-free stretch of {settings.min_length_s:g} s with every sensor valid",
                             path=campaign.root)
     return records
 
@@ -222,7 +233,7 @@ def _record(run, i0, i1, lay: Layout, fs_in, ratio, settings) -> Record | None:
         resp.append(x)
     z = np.vstack(rails + resp + [cons, mean["axle1"], mean["axle2"]])[:, first:]
     v, d, t = v[first:], d[first:], t[first:]
-    if t[-1] - t[0] < settings.min_length:
+    if t[-1] - t[0] < settings.min_length_s:
         return None
     z = z - z.mean(axis=1, keepdims=True)
     z = scipy.signal.resample_poly(z, ratio.numerator, ratio.denominator, axis=1)
@@ -233,16 +244,16 @@ def _record(run, i0, i1, lay: Layout, fs_in, ratio, settings) -> Record | None:
 
 # ------------------------------------------------------------------ spectral statistics
 def band_edges(settings: RecordSettings) -> np.ndarray:
-    """Band edges [Hz]: width max(min_bins / window, rel_width x f)."""
+    """Band edges [Hz]: width max(min_bins / segment_s, rel_width x f)."""
     lo, hi = settings.band
-    df = settings.min_bins / settings.window
+    df = settings.min_bins / settings.segment_s
     edges = [lo]
     while edges[-1] < hi:
         edges.append(edges[-1] + max(df, settings.rel_width * edges[-1]))
     return np.array(edges)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Statistics:
     """Sums of cross-spectra per (run, speed bin): ``S[key]`` is (n_band, n_ch, n_ch) of
     mean-square contributions (so a channel's diagonal summed over bands is its mean square
@@ -251,7 +262,7 @@ class Statistics:
     channels: tuple[str, ...]
     edges: np.ndarray
     centres: np.ndarray
-    window: float  # [s]
+    segment_s: float  # [s] FFT segment length
     S: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
 
@@ -272,19 +283,21 @@ class Statistics:
 
 def statistics(records: list[Record], channels: tuple[str, ...],
                settings: RecordSettings = RecordSettings()) -> Statistics:
+    """Band sums of the cross-spectra of ``channels`` (the rows of each record's ``z``) per
+    (run, speed bin), from tapered segments overlapping as ``settings`` say."""
     edges = band_edges(settings)
-    nw = int(round(settings.window * settings.fs))
-    hop = max(1, int(round(nw * (1.0 - settings.overlap))))
-    taper = scipy.signal.get_window(settings.taper, nw)  # periodic
+    nw = int(round(settings.segment_s * settings.fs))
+    hop = max(1, int(round(nw * (1.0 - settings.overlap_fraction))))
+    taper = scipy.signal.get_window(settings.window, nw)  # periodic
     # one-sided scaling so that a stationary signal's bins sum to its mean square
     scale = np.sqrt(2.0 / (nw * np.sum(taper * taper)))
-    seconds = hop / settings.fs  # each window stands for its hop: the cells' seconds are the data's
+    seconds = hop / settings.fs  # each segment stands for its hop: the cells' seconds are the data's
     freqs = np.fft.rfftfreq(nw, 1.0 / settings.fs)
     band = np.searchsorted(edges, freqs, side="right") - 1
     inside = (band >= 0) & (band < len(edges) - 1)
     idx, which = np.flatnonzero(inside), band[inside]
     centres = np.sqrt(edges[:-1] * edges[1:])
-    st = Statistics(channels, edges, centres, settings.window)
+    st = Statistics(channels, edges, centres, settings.segment_s)
     for rec in records:
         n = rec.z.shape[1]
         for a in range(0, n - nw + 1, hop):
@@ -297,5 +310,5 @@ def statistics(records: list[Record], channels: tuple[str, ...],
             st.S[key] = st.S.get(key, 0) + S * seconds
             st.seconds[key] = st.seconds.get(key, 0.0) + seconds
     if not st.S:
-        raise ValueError(f"no record is one {settings.window:g} s window long")
+        raise ValueError(f"no record is one {settings.segment_s:g} s segment long")
     return st

@@ -3,29 +3,42 @@ physical addition to the 2D car or its sensors with its own parameters and range
 
 ``kind`` says which part of the data the extension changes and therefore which error
 measures it: ``response`` (bogie and carbody channels predicted from the rail input,
-:mod:`calibration.diagnosis.response`), ``wheel`` (the axle-box consistency channel,
-:mod:`calibration.diagnosis.wheels`) or ``track`` (the axle boxes' spectra over speed,
-:mod:`calibration.diagnosis.track`).
+:mod:`.response`), ``wheel`` (the axle-box consistency channel, :mod:`.wheels`) or
+``track`` (the axle boxes' spectra over speed, :mod:`.track`). Adding a cause is an entry
+of :data:`EXTENSIONS` and the evidence that speaks for it (:func:`.evidence.scores`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Callable
 
-from ..models.car2d import CarExtras
+from ...models.car2d import CarExtras
 from .response import ParamRange, SensorModel
+
+KINDS = ("response", "wheel", "track")
 
 
 @dataclass(frozen=True)
 class Extension:
+    """One model extension: the cause it stands for, the part of the data it changes and,
+    for a response extension, its parameters and how they make the car's additions."""
+
     name: str  # the cause it stands for (effects catalogue name)
-    kind: str  # 'response' | 'wheel' | 'track'
+    kind: str  # one of KINDS
     description: str
     params: tuple[ParamRange, ...] = ()
     make: Callable | None = None  # response kind: values -> (CarExtras, SensorModel)
 
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"Extension {self.name!r}: kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
+        if self.kind == "response" and (not self.params or self.make is None):
+            raise ValueError(f"Extension {self.name!r}: a response extension needs params and make")
+
     @property
     def n_params(self) -> int:
+        """Parameters the extension fits (a wheel polygon: wavelength, amplitude, wheelset;
+        a track: resonance and damping)."""
         return {"wheel": 3, "track": 2}.get(self.kind, len(self.params))
 
 

@@ -29,26 +29,42 @@ import scipy.optimize
 from .records import Statistics
 
 CHANNELS = ("axle1_mean", "axle2_mean")
+#: Variance of log10 of a mean of K periodogram bins is about this / K: a bin of a Gaussian
+#: signal is exponentially distributed, and var(ln X) of a mean of K of them is 1 / K for
+#: large K, i.e. 1 / (K ln(10)^2) in log10.
+LOG10_BIN_VARIANCE = 0.1886
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class TrackSettings:
+    """The track fit's search: knot spacing of log S(kappa) and the ranges of the track's
+    resonance and damping."""
+
     knot_decades: float = 0.02  # fine enough to follow lines fixed in wavenumber (sleepers, welds)
-    f_t_range: tuple[float, float] = (8.0, 100.0)  # [Hz]
-    zeta_range: tuple[float, float] = (0.03, 0.6)
+    f_t_range: tuple[float, float] = (8.0, 100.0)  # [Hz] track resonance searched
+    zeta_range: tuple[float, float] = (0.03, 0.6)  # damping ratio searched
     band: tuple[float, float] = (2.0, 60.0)  # [Hz]: below, the axle boxes' SNR is poor
+
+    def __post_init__(self):
+        if not self.knot_decades > 0:
+            raise ValueError(f"TrackSettings.knot_decades must be positive, got {self.knot_decades}")
+        for name in ("f_t_range", "zeta_range", "band"):
+            lo, hi = getattr(self, name)
+            if not 0 < lo < hi:
+                raise ValueError(f"TrackSettings.{name} must be (low, high) with 0 < low < high, got {(lo, hi)}")
 
 
 def transmissibility2(f: np.ndarray, f_t: float, zeta: float) -> np.ndarray:
+    """|T(f)|^2 of a mass on a track of resonance ``f_t`` [Hz] and damping ratio ``zeta``."""
     r = f / f_t
     return (1 + (2 * zeta * r) ** 2) / ((1 - r * r) ** 2 + (2 * zeta * r) ** 2)
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Data:
     y: np.ndarray  # log10 of (P v / (2 pi f)^4)
     w: np.ndarray
-    var: np.ndarray  # sampling variance of y (a sum of K periodogram bins: 0.1886 / K)
+    var: np.ndarray  # sampling variance of y (a sum of K periodogram bins: LOG10_BIN_VARIANCE / K)
     logk: np.ndarray
     f: np.ndarray
     channel: np.ndarray  # 0 / 1
@@ -59,7 +75,7 @@ def _collect(stats: Statistics, keys, settings: TrackSettings) -> _Data:
     bw = np.diff(stats.edges)
     sel = (f >= settings.band[0]) & (f <= settings.band[1])
     ys, ws, ks, fs, cs, vs = [], [], [], [], [], []
-    nbins = np.diff(stats.edges) * stats.window  # periodogram bins per band and window
+    nbins = np.diff(stats.edges) * stats.segment_s  # periodogram bins per band and segment
     for key in keys:
         v = key[1] + 0.5 * _bin_width(stats)
         for c, name in enumerate(CHANNELS):
@@ -71,12 +87,13 @@ def _collect(stats: Statistics, keys, settings: TrackSettings) -> _Data:
             ks.append(np.log10(f[ok] / v))
             fs.append(f[ok])
             cs.append(np.full(ok.sum(), c))
-            vs.append(0.1886 / np.maximum(nbins[ok] * stats.seconds[key] / stats.window, 1.0))
+            vs.append(LOG10_BIN_VARIANCE / np.maximum(nbins[ok] * stats.seconds[key] / stats.segment_s, 1.0))
     y, w, k, f_, c_, var = (np.concatenate(a) for a in (ys, ws, ks, fs, cs, vs))
     return _Data(y, w, var, k, f_, c_)
 
 
 def _bin_width(stats: Statistics) -> float:
+    """The speed bins' width [m/s] as their spacing shows it (2.5 with one bin)."""
     bins = stats.speed_bins
     return float(np.min(np.diff(bins))) if len(bins) > 1 else 2.5
 
@@ -120,6 +137,9 @@ class _Normal:
 
 @dataclass(frozen=True)
 class TrackFit:
+    """The axle boxes' common level spectrum log10 S(kappa) on ``knots`` (log10 kappa, kappa
+    in 1/m), on a rigid rail or through a track of resonance ``f_t`` and damping ``zeta``."""
+
     f_t: float | None  # [Hz]; None: rigid (baseline)
     zeta: float | None
     knots: np.ndarray
@@ -136,7 +156,10 @@ def _solve(ne: _Normal, f_t, zeta):
     return ne.solve(y)
 
 
-def fit_track(stats: Statistics, train_keys, flexible: bool, settings: TrackSettings = TrackSettings()) -> TrackFit:
+def fit_track(stats: Statistics, train_keys, *, flexible: bool,
+              settings: TrackSettings = TrackSettings()) -> TrackFit:
+    """The level spectrum fitted to the axle boxes' spectra of ``train_keys``, rigid or
+    (``flexible``) with the track resonance and damping searched on a grid and refined."""
     d = _collect(stats, train_keys, settings)
     knots = np.arange(d.logk.min(), d.logk.max() + settings.knot_decades, settings.knot_decades)
     ne = _Normal(d, knots)
@@ -180,9 +203,8 @@ def speed_folds(stats: Statistics, keys) -> list[tuple[set, set]]:
     (low, middle, high; two with two bins), each predicted from the others. A
     speed-dependent model claims exactly this: what the axle boxes see at speeds it was not
     fitted at. Each fold is fitted on two groups, so it spans a share of the speed range
-    wide enough to tell a resonance fixed in frequency from the rail's spectrum (two halves
-    split by data did not always: seed 1636's upper half spanned 34-36 m/s and put a 23.5 Hz
-    track at 40 Hz). Falls back to [] with one speed bin."""
+    wide enough to tell a resonance fixed in frequency from the rail's spectrum (a half of
+    the speeds can be too narrow to). Falls back to [] with one speed bin."""
     keys = set(keys)
     bins = sorted({k[1] for k in keys})
     if len(bins) < 2:
@@ -204,6 +226,8 @@ def track_cross_validation(stats: Statistics, keys, settings: TrackSettings = Tr
     """(rigid error, flexible error) per channel, summed over the speed folds."""
     before, after = 0.0, 0.0
     for fit_keys, test_keys in speed_folds(stats, keys):
-        before = before + track_error(stats, test_keys, fit_track(stats, fit_keys, False, settings), settings)
-        after = after + track_error(stats, test_keys, fit_track(stats, fit_keys, True, settings), settings)
+        rigid = fit_track(stats, fit_keys, flexible=False, settings=settings)
+        flexible = fit_track(stats, fit_keys, flexible=True, settings=settings)
+        before = before + track_error(stats, test_keys, rigid, settings)
+        after = after + track_error(stats, test_keys, flexible, settings)
     return np.atleast_1d(before), np.atleast_1d(after)

@@ -6,7 +6,7 @@ residual r = y - G u has, in each band, the cross-spectrum
 
     S_rr = S_yy - G S_uy - S_yu G^H + G S_uu G^H,
 
-a quadratic form in the band sums of :mod:`calibration.diagnosis.records`. A model is
+a quadratic form in the band sums of :mod:`.records`. A model is
 scored by each response channel's *normalised residual power* (NRP: residual mean square
 over the channel's mean square, in the analysis band), and fitted by least squares on
 the square roots of the per-band residual powers, each channel normalised by its power.
@@ -19,8 +19,8 @@ import numpy as np
 import scipy.ndimage
 import scipy.optimize
 
-from ..models.car2d import CarExtras, Output, build_car, frequency_response
-from ..models.parameters import CarParameters
+from ...models.car2d import CarExtras, Output, build_car, frequency_response
+from ...models.parameters import CarParameters
 from .records import Layout, Statistics
 
 #: baseline parameters the response fit adjusts (geometry is known; m_w does not enter a
@@ -82,10 +82,13 @@ def channel_power(S: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ResponseFit:
+    """A car (and extension) fitted to the responses: the model, its extension parameter
+    values, its training NRP per response channel."""
+
     parameters: CarParameters
     extras: CarExtras
     sensors: SensorModel
-    values: dict  # extension parameter values
+    values: dict  # extension parameter values (SI units, as named)
     nrp_train: np.ndarray  # per response channel
     at_bounds: tuple  # names of parameters within 1 % of a bound (fraction of the log range)
     evaluations: int
@@ -93,10 +96,19 @@ class ResponseFit:
 
 @dataclass(frozen=True)
 class ParamRange:
+    """A fitted parameter's search range [low, high] (in the parameter's unit), searched in
+    log space when ``log`` (then 0 < low)."""
+
     name: str
     low: float
     high: float
     log: bool = True
+
+    def __post_init__(self):
+        if not self.low < self.high:
+            raise ValueError(f"ParamRange {self.name!r}: low must be below high, got ({self.low}, {self.high})")
+        if self.log and not self.low > 0:
+            raise ValueError(f"ParamRange {self.name!r}: a log range needs low > 0, got {self.low}")
 
 
 class _Problem:
@@ -152,7 +164,7 @@ class _Problem:
         return x, float(sol.cost)
 
 
-def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict,
+def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict, *,
                  ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6,
                  rng: np.random.Generator | None = None) -> ResponseFit:
     """Fit the baseline parameters in ``bounds`` ({name: (low, high)}) and the extension

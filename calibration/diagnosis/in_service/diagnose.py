@@ -1,0 +1,154 @@
+"""``railcal diagnose`` on an in-service campaign: what the calibrated 2D car gets wrong,
+the cause, the extended model and the gain.
+
+1. **Data.** Gap-free records of rail input (axle boxes), responses (bogie and carbody
+   sensors) and the axle-box consistency channel (:mod:`.records`); runs split into
+   training (odd) and held-out (even) runs; a single run is split in halves.
+2. **Baseline.** The seed's car, its masses, inertias, stiffnesses and dampings fitted to
+   the training runs by residual energy (:mod:`.response`), within the campaign's priors.
+3. **Evidence** from the baseline's residuals (:mod:`.evidence`).
+4. **Hypotheses.** Every extension of :data:`.extensions.EXTENSIONS` is scored by the
+   evidence that speaks for it and ranked; the leading ones are fitted and judged on
+   held-out data (:mod:`.hypotheses`).
+5. **Decision.** The best hypothesis whose penalised gain exceeds ``min_gain``, that
+   makes no held-out channel worse by more than ``max_loss`` of its error (unless that
+   worsening is under ``max_loss`` of what the hypothesis gains on its best channel, in
+   the same units) and, for a response extension, that explains the systematic residual
+   on the channel it gains on (held-out error times the residual's coherence with the
+   rail input falls to ``max_systematic_left`` of the baseline's or below: an extension
+   that only rescales what it cannot model, e.g. a gyro gain against a bogie resonance,
+   leaves the residual as coherent as before) is the cause. Otherwise ``none`` when the
+   evidence shows nothing systematic (residual input-coherence, peaks and lines all below
+   their thresholds), or ``unexplained`` with the evidence.
+
+Held-out error per channel kind: response channels, NRP over the bands where the
+measured channel stands ``signal_factor`` above its own spectral floor (noise-only bands
+excluded, the same bands before and after); consistency, its mean square after the wheel
+line is removed; axle boxes, the mean squared log10 misfit of the spectra's collapse over
+speed less their sampling variance, held out by speed (:func:`.track.speed_folds`).
+"""
+from __future__ import annotations
+
+from ...data.campaign import Campaign
+from ...data.errors import CampaignError
+from ...identification.in_service import prior_parameters
+from ...progress import counter
+from ..threads import one_blas_thread
+from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, scores
+from .extensions import EXTENSIONS
+from .hypotheses import Hypothesis, fit_hypothesis
+from .records import Record, layout, read_records, statistics
+from .response import FIT_NAMES, fit_response
+from .result import InServiceDiagnosis
+from .settings import DiagnosisSettings
+
+
+def _halves(records: list[Record]) -> list[Record]:
+    """One run: its records' first and second halves play training and held-out runs."""
+    split = []
+    for r in records:
+        h = r.z.shape[1] // 2
+        for tag, sl in (("a", slice(0, h)), ("b", slice(h, None))):
+            split.append(Record(f"{r.run_id}#{tag}", r.t0, r.speed[sl], r.distance[sl], r.z[:, sl]))
+    return split
+
+
+def _data(campaign: Campaign, settings: DiagnosisSettings, say) -> DiagnosisData:
+    """The campaign read into records and band statistics, split into training (odd) and
+    held-out (even) runs, with the prior car and the baseline's search bounds."""
+    lay = layout(campaign)
+    records = read_records(campaign, lay, settings.records, progress=say)
+    if len(campaign.run_ids) == 1:
+        records = _halves(records)
+    stats = statistics(records, lay.channels, settings.records)
+    if len(stats.runs) < 2:
+        raise CampaignError(f"the diagnosis needs data from two runs (or one long run) to hold one out; usable "
+                            f"{settings.records.segment_s:g} s segments came from {len(stats.runs)}",
+                            path=campaign.root)
+    runs = stats.runs
+    train, test = frozenset(runs[0::2]), frozenset(runs[1::2])
+    prior = prior_parameters(campaign)
+    pri = campaign.meta.priors
+    bounds = {n: (pri[n].low, pri[n].high) if n in pri else
+              (getattr(prior, n) / settings.prior_spread, getattr(prior, n) * settings.prior_spread)
+              for n in FIT_NAMES}
+    return DiagnosisData(campaign.root, frozenset(campaign.run_ids), lay, tuple(records), stats, train, test,
+                         prior, bounds, settings)
+
+
+@one_blas_thread  # the answer must not depend on the machine's thread count (threads.py)
+def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = DiagnosisSettings(),
+                        progress=None) -> InServiceDiagnosis:
+    """Diagnose an in-service campaign: the baseline car fitted to the training runs, the
+    evidence of its residuals, the leading extensions fitted and judged on held-out data,
+    and the cause (see the module's description). ``progress``: None or a callable taking
+    a message (:mod:`calibration.progress`)."""
+    say = progress or (lambda msg: None)
+    stages = counter(progress, 3 + settings.fit_leading, "in-service diagnosis", unit="stage")
+    data = _data(campaign, settings, say)
+    stages.update()
+    stats = data.stats
+    say(f"{len(data.records)} records, {sum(stats.seconds.values()):.0f} s in {len(stats.S)} (run, speed) cells; "
+        f"training runs {sorted(data.train)}, held out {sorted(data.test)}")
+    base_fit = fit_response(stats, data.layout, data.keys(data.train), data.prior, data.bounds)
+    stages.update()
+    say(f"baseline fitted ({base_fit.evaluations} evaluations)")
+    ev = baseline_evidence(data, base_fit)
+    score = scores(ev, data.layout, settings)
+    ranked = sorted(score, key=lambda k: -score[k])
+    hyps = []
+    for name in ranked[:settings.fit_leading]:
+        h = fit_hypothesis(data, EXTENSIONS[name], base_fit, ev, score[name])
+        stages.update()
+        hyps.append(h)
+        say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
+    ok = [h for h in hyps if h.penalised_gain >= settings.min_gain and not h.losses
+          and not h.leaves_systematic(settings)]
+    words = alarms(ev, settings)
+    if ok:
+        best = max(ok, key=lambda h: h.penalised_gain)
+        cause = best.name
+    else:
+        best = None
+        cause = "unexplained" if words else "none"
+    summary = _summary(cause, best, words, ev, hyps, settings)
+    stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped
+    stages.close()
+    return InServiceDiagnosis(
+        campaign=campaign.root, cause=cause, summary=tuple(summary), evidence=ev, hypotheses=tuple(hyps), best=best,
+        baseline=base_fit, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
+        heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats)
+
+
+def _summary(cause: str, best: Hypothesis | None, alarm_words: list[str], ev: Evidence, hyps: list[Hypothesis],
+             s: DiagnosisSettings) -> list[str]:
+    """The diagnosis in words: the cause, the alarms, the hypotheses that gained but were
+    not named and why, all hypotheses by gain, the baseline's parameters at bounds."""
+    out = []
+    if best is not None:
+        out.append(f"cause: {cause} ({best.extension.description}); held-out error on {best.best_channel} "
+                   f"reduced by {best.gain:.0%}")
+        out.append("extension parameters: " + ", ".join(
+            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in best.parameters.items()))
+    elif cause == "unexplained":
+        out.append("unexplained: the baseline leaves systematic residuals and no extension in the registry "
+                   "reduces the held-out error enough")
+    else:
+        out.append("none: the baseline explains the data within the noise (no systematic residual, no extension gains)")
+    out += alarm_words
+    for h in hyps:
+        if h is best or h.penalised_gain < s.min_gain:
+            continue
+        if h.losses:
+            worse = ", ".join(f"{n} ({h.heldout_error[n]['before']:.3g} -> {h.heldout_error[n]['after']:.3g})"
+                              for n in h.losses)
+            out.append(f"{h.name} gains {h.gain:.0%} on {h.best_channel} but makes held-out {worse} worse")
+        if h.leaves_systematic(s):
+            out.append(f"{h.name} gains {h.gain:.0%} on {h.best_channel} but leaves "
+                       f"{h.systematic_left:.0%} of its systematic residual (error x input coherence): "
+                       "it does not explain it")
+    others = sorted(hyps, key=lambda h: -h.penalised_gain)
+    out.append("hypotheses by held-out gain: " + ", ".join(f"{h.name} {h.gain:.0%}" for h in others))
+    if ev.parameters_at_bounds:
+        out.append("baseline parameters at their bounds: " + ", ".join(ev.parameters_at_bounds))
+    return out

@@ -1,0 +1,164 @@
+"""A hypothesis: one extension of :data:`.extensions.EXTENSIONS` fitted on the training
+runs and judged by the held-out error of the channels it changes.
+
+*Gain* is the relative reduction of that error on the channel where it is largest
+(:func:`reductions`), less ``penalty`` per extension parameter. A response extension is
+fitted from the baseline (global start, then joint refinement with the baseline) and
+judged on held-out runs over the baseline's signal bands; a wheel polygon by the
+consistency channel's held-out mean square; a track by the axle boxes' collapse misfit
+held out *by speed* (low, middle and high speed bins, each predicted from the other two:
+a track resonance is a claim about other speeds, which held-out runs at the training
+runs' speeds cannot test).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...models.car2d import CarExtras
+from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors, systematic
+from .extensions import Extension
+from .response import ResponseFit, fit_response
+from .settings import DiagnosisSettings
+from .track import TrackFit, fit_track, track_cross_validation, track_error
+from .wheels import LineSpectrum, WheelPolygon, fit_polygon, line_spectrum, polygon_error
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One extension fitted and judged. Errors are held-out errors in the unit of the
+    extension's kind: NRP for response channels, (1/m)^2 for the consistency channel, a
+    mean squared log10 misfit for the axle boxes."""
+
+    extension: Extension
+    evidence_score: float  # what spoke for it in the baseline's evidence (its rank)
+    parameters: dict  # the extension's fitted parameters (JSON values)
+    parameters_at_bounds: tuple[str, ...]  # extension parameters at a bound of their range
+    model: dict  # the extended model's additions (JSON values)
+    heldout_error: dict  # channel -> {"before", "after", "reduction" (None: nothing to reduce)}
+    residual: dict | None  # response kind: channel -> systematic residual before and after
+    systematic_left: float | None  # response kind: share of the best channel's systematic residual left
+    best_channel: str
+    gain: float  # reduction of the held-out error on ``best_channel``
+    worst_change: float  # the smallest (most negative) reduction over the channels
+    losses: tuple[str, ...]  # channels made worse (:func:`heldout_losses`)
+    penalised_gain: float
+    fit: ResponseFit | WheelPolygon | TrackFit  # the fitted extended model
+    heldout_line_spectrum: LineSpectrum | None = None  # wheel kind: the held-out runs' consistency spectrum
+
+    @property
+    def name(self) -> str:
+        return self.extension.name
+
+    @property
+    def kind(self) -> str:
+        return self.extension.kind
+
+    def to_json(self) -> dict:
+        """The hypothesis as the diagnosis JSON lists it (without its ``model``)."""
+        e = self.extension
+        return {"name": e.name, "kind": e.kind, "description": e.description, "parameters": self.parameters,
+                "parameters_at_bounds": list(self.parameters_at_bounds), "n_params": e.n_params,
+                "heldout_error": self.heldout_error, "residual": self.residual,
+                "systematic_left": self.systematic_left, "best_channel": self.best_channel, "gain": self.gain,
+                "worst_change": self.worst_change, "losses": list(self.losses),
+                "penalised_gain": self.penalised_gain, "evidence_score": self.evidence_score}
+
+    def leaves_systematic(self, s: DiagnosisSettings) -> bool:
+        """Does this response extension leave more of the systematic residual on its best
+        channel than ``max_systematic_left``, i.e. not explain it? (False for other kinds.)"""
+        return self.systematic_left is not None and self.systematic_left > s.max_systematic_left
+
+
+def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Relative held-out error reduction per channel, 1 - after / before; NaN where the
+    channel has no held-out error to reduce (no signal band of it survived the masks: 0 / 0
+    would read as a 100 % gain on a channel that says nothing)."""
+    before, after = np.asarray(before, float), np.asarray(after, float)
+    ok = before > 0
+    return np.where(ok, 1.0 - after / np.where(ok, before, 1.0), np.nan)
+
+
+def heldout_losses(names, before, after, best: int, max_loss: float) -> list[str]:
+    """Channels a hypothesis makes worse on held-out data: error up by more than
+    ``max_loss`` of its own and by more than ``max_loss`` of the error the hypothesis
+    removes on its best channel (a hypothesis's channels share one unit: NRP for response
+    channels, log misfit for the axle boxes). A channel explained to within a per cent of
+    its signal that loses a tenth of a per cent does not outweigh a channel's error cut by
+    nine tenths."""
+    before, after = np.asarray(before, float), np.asarray(after, float)
+    removed = max(before[best] - after[best], 0.0)
+    return [n for n, b, a in zip(names, before, after)
+            if b > 0 and a - b > max_loss * b and a - b > max_loss * removed]
+
+
+def _extras_json(ex: CarExtras) -> dict:
+    d = {k: getattr(ex, k) for k in ("cog_offset", "bending_hz", "bending_damping", "bending_mass_ratio",
+                                     "reservoir_ratio", "reservoir_corner_hz")}
+    return {k: v for k, v in d.items() if v not in (None, 0.0) or k in ("cog_offset",)}
+
+
+def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, ev: Evidence,
+                   score: float) -> Hypothesis:
+    """Fit extension ``ext`` on the training runs and judge it on held-out data against the
+    baseline ``base_fit`` (its evidence ``ev``; ``score`` what spoke for the extension)."""
+    s, stats = data.settings, data.stats
+    spectrum = None
+    if ext.kind == "response":
+        fit = fit_response(stats, data.layout, data.keys(data.train), base_fit.parameters, data.bounds,
+                           ext_params=ext.params, make=ext.make, starts=s.starts)
+        before = response_errors(data, base_fit, ev.masks)
+        after = response_errors(data, fit, ev.masks)
+        names = data.layout.response_names
+        params = fit.values
+        model = {"parameters": fit.parameters.as_dict(), "extras": _extras_json(fit.extras),
+                 "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}}
+        at = [n for n in fit.at_bounds if n in params]
+        left, _ = channel_evidence(data, fit, ev.masks)
+        residual = {n: {"before": systematic(ev.channels[n]), "after": systematic(left[n])} for n in names}
+    elif ext.kind == "wheel":
+        fit = fit_polygon(data.records, data.rows, data.train, s.wheels)
+        before = np.array([polygon_error(data.records, data.rows, data.test, None, s.wheels)])
+        after = np.array([polygon_error(data.records, data.rows, data.test, fit, s.wheels)])
+        spectrum = line_spectrum(data.records, data.rows, data.test, s.wheels)
+        names = ("consistency",)
+        params = fit.to_json()
+        model = {"wheel_polygon": params}
+        at = []
+        residual = None
+    else:
+        all_keys = set(stats.S)
+        fit = fit_track(stats, all_keys, flexible=True, settings=s.track)
+        before, after = track_cross_validation(stats, all_keys, s.track)
+        if before.size < 2:  # one speed bin: held-out runs instead
+            tb = fit_track(stats, data.keys(data.train), flexible=False, settings=s.track)
+            fit = fit_track(stats, data.keys(data.train), flexible=True, settings=s.track)
+            before = track_error(stats, data.keys(data.test), tb, s.track)
+            after = track_error(stats, data.keys(data.test), fit, s.track)
+        names = ("axle1_mean", "axle2_mean")
+        m_eff = base_fit.parameters.m_w + CarExtras().track_mass
+        params = {**fit.to_json(), "track_stiffness_n_per_m": float((2 * np.pi * fit.f_t) ** 2 * m_eff),
+                  "assumed_moving_mass_kg": m_eff}
+        model = {"extras": {"track_stiffness": params["track_stiffness_n_per_m"],
+                            "track_damping_ratio": fit.zeta}}
+        at = [n for n, v, (lo, hi) in (("track_resonance_hz", fit.f_t, s.track.f_t_range),
+                                       ("damping_ratio", fit.zeta, s.track.zeta_range))
+              if min(abs(np.log(v / lo)), abs(np.log(hi / v))) < 0.01 * np.log(hi / lo)]
+        residual = None
+    red = reductions(before, after)
+    seen = ~np.isnan(red)
+    best = int(np.nanargmax(red)) if seen.any() else 0
+    gain = float(red[best]) if seen.any() else 0.0
+    left = None
+    if residual is not None and seen.any():  # the systematic residual left on the best channel
+        r = residual[names[best]]
+        left = (1.0 - gain) * r["after"]["input_coherence"] / max(r["before"]["input_coherence"], 1e-12)
+    return Hypothesis(
+        extension=ext, evidence_score=score, parameters=params, parameters_at_bounds=tuple(at), model=model,
+        heldout_error={n: {"before": float(b), "after": float(a), "reduction": float(r) if ok else None}
+                       for n, b, a, r, ok in zip(names, before, after, red, seen)},
+        residual=residual, systematic_left=left, best_channel=names[best], gain=gain,
+        worst_change=float(np.nanmin(red)) if seen.any() else 0.0,
+        losses=tuple(heldout_losses(names, before, after, best, s.max_loss)),
+        penalised_gain=gain - s.penalty * ext.n_params, fit=fit, heldout_line_spectrum=spectrum)

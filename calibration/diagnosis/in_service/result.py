@@ -1,0 +1,70 @@
+"""The in-service diagnosis's result: made once by
+:func:`~calibration.diagnosis.in_service.diagnose_in_service`, written as JSON by
+:meth:`InServiceDiagnosis.to_json` and drawn by :meth:`InServiceDiagnosis.plot`."""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+
+from .evidence import Evidence
+from .hypotheses import Hypothesis
+from .records import Layout, Statistics
+from .response import ResponseFit
+from .settings import DiagnosisSettings
+
+FORMAT = "railcal-diagnosis/1"
+
+
+@dataclass(frozen=True)
+class InServiceDiagnosis:
+    """What the calibrated 2D car gets wrong on an in-service campaign, and why.
+
+    ``cause`` is an extension's name (:data:`.extensions.EXTENSIONS`), ``"none"`` (nothing
+    systematic left) or ``"unexplained"`` (something systematic that no extension explains);
+    ``summary`` says why in words. ``best`` is the hypothesis named as the cause (None for
+    the other two answers); ``hypotheses`` every one fitted, best evidence first.
+    """
+
+    campaign: Path  # the campaign folder
+    cause: str
+    summary: tuple[str, ...]
+    evidence: Evidence
+    hypotheses: tuple[Hypothesis, ...]
+    best: Hypothesis | None
+    baseline: ResponseFit  # the seed's car fitted to the training runs
+    bounds: dict  # baseline parameter -> (low, high) searched
+    training_runs: tuple[str, ...]
+    heldout_runs: tuple[str, ...]
+    settings: DiagnosisSettings
+    layout: Layout
+    statistics: Statistics  # the band statistics every error and figure is computed from
+
+    def to_json(self) -> dict:
+        """The result as JSON values (a new dict on each call): ``format``, ``campaign``,
+        ``cause``, ``evidence`` (``summary`` first), ``extension``, ``gain``, ``baseline``,
+        ``hypotheses``, ``split``, ``settings``."""
+        best, s = self.best, self.settings
+        out = {
+            "format": FORMAT, "campaign": str(self.campaign), "cause": self.cause,
+            "evidence": {"summary": list(self.summary), **self.evidence.to_json()},
+            "extension": None if best is None else {"name": best.name, "parameters": best.parameters,
+                                                   "model": best.model},
+            "gain": None if best is None else {"heldout_error": best.heldout_error, "best_channel": best.best_channel,
+                                               "reduction": best.gain},
+            "baseline": {"parameters": self.baseline.parameters.as_dict(),
+                         "parameters_at_bounds": list(self.baseline.at_bounds),
+                         "bounds": {k: list(v) for k, v in self.bounds.items()}},
+            "hypotheses": [h.to_json() for h in self.hypotheses],
+            "split": {"training_runs": list(self.training_runs), "heldout_runs": list(self.heldout_runs)},
+            "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
+                         "max_systematic_left": s.max_systematic_left},
+        }
+        return copy.deepcopy(out)  # the caller may change it; the result stays as made
+
+    def plot(self, stem: Path) -> list[Path]:
+        """Draw the residual PSD before and after the extension (``<stem>_residual_psd.png``)
+        and the baseline residual's speed-frequency map (``<stem>_speed_map.png``)."""
+        from .plots import plot_diagnosis
+
+        return plot_diagnosis(self, stem)
