@@ -122,7 +122,7 @@ def _speed_scaling(data: DiagnosisData, fit: ResponseFit, c: int, f0: float) -> 
         r = R[:, c] / bw
         ratios.append(r / np.maximum(_floor(r), 1e-300))
         vs.append(vb + vw / 2)
-        weights.append(sum(stats.seconds[k] for k in keys))
+        weights.append(stats.seconds_of(keys))
     vs = np.array(vs)
     v_mean = float(np.average(vs, weights=weights))
     f = stats.centres

@@ -49,11 +49,11 @@ def _track_collapse(d: InServiceDiagnosis, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(9, 4.5))
     i = stats.channels.index("axle1_mean")
     for vb in stats.speed_bins:
-        kk = [k for k in keys if k[1] == vb]
+        kk = stats.ordered({k for k in keys if k[1] == vb})
         if not kk:
             continue
         v = vb + d.settings.records.speed_bin / 2
-        P = sum(stats.S[k][:, i, i].real for k in kk) / sum(stats.seconds[k] for k in kk) / bw
+        P = sum(stats.S[k][:, i, i].real for k in kk) / stats.seconds_of(kk) / bw
         kap = f / v
         line, = ax.loglog(kap, P * v / (2 * np.pi * f) ** 4, lw=0.6, label=f"{v:.0f} m/s, as measured")
         ax.loglog(kap, P * v / (2 * np.pi * f) ** 4 / transmissibility2(f, fit.f_t, fit.zeta), lw=1.2,
@@ -75,7 +75,7 @@ def _residual_psd(d: InServiceDiagnosis, path: Path) -> Path:
     stats, lay, base = d.statistics, d.layout, d.baseline
     keys = {k for k in stats.S if k[0] in d.heldout_runs}
     f, bw = stats.centres, np.diff(stats.edges)
-    secs = sum(stats.seconds[k] for k in keys)
+    secs = stats.seconds_of(keys)
     R0, P = response_nrp(stats, lay, keys, base.parameters, base.extras, base.sensors, by_band=True)
     R1 = None
     if best is not None:
@@ -102,7 +102,7 @@ def _speed_map(d: InServiceDiagnosis, path: Path) -> Path:
         name = "consistency" if best.kind == "wheel" else "axle1_mean"
         i = stats.channels.index(name)
         rows = [sum(stats.S[k][:, i, i].real for k in stats.S if k[1] == vb)
-                / sum(stats.seconds[k] for k in stats.S if k[1] == vb) / bw for vb in bins]
+                / stats.seconds_of({k for k in stats.S if k[1] == vb}) / bw for vb in bins]
         label = f"{name} PSD"
     else:
         ch = d.evidence.channels
@@ -112,7 +112,7 @@ def _speed_map(d: InServiceDiagnosis, path: Path) -> Path:
         for vb in bins:
             keys = {k for k in stats.S if k[1] == vb}
             R, _ = response_nrp(stats, d.layout, keys, base.parameters, base.extras, base.sensors, by_band=True)
-            rows.append(R[:, c] / bw / sum(stats.seconds[k] for k in keys))
+            rows.append(R[:, c] / bw / stats.seconds_of(keys))
         label = f"{name}: baseline residual PSD"
     fig, ax = plt.subplots(figsize=(9, 4.5))
     v = np.array(bins) + d.settings.records.speed_bin / 2

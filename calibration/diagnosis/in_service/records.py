@@ -257,7 +257,12 @@ def band_edges(settings: RecordSettings) -> np.ndarray:
 class Statistics:
     """Sums of cross-spectra per (run, speed bin): ``S[key]`` is (n_band, n_ch, n_ch) of
     mean-square contributions (so a channel's diagonal summed over bands is its mean square
-    in the band) times the seconds of data, ``seconds[key]`` the seconds."""
+    in the band) times the seconds of data, ``seconds[key]`` the seconds.
+
+    Sums over a selection of keys run in the statistics' own order (:meth:`ordered`): a
+    set of (run id, speed) keys iterates in an order that changes with Python's string
+    hash seed, and a fit on sums taken in that order gives another answer in each process.
+    """
 
     channels: tuple[str, ...]
     edges: np.ndarray
@@ -265,6 +270,14 @@ class Statistics:
     segment_s: float  # [s] FFT segment length
     S: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
+
+    def ordered(self, keys) -> list:
+        """The keys among ``keys``, in the statistics' order."""
+        return [k for k in self.S if k in keys]
+
+    def seconds_of(self, keys) -> float:
+        """Seconds of data [s] under ``keys``."""
+        return float(sum(self.seconds[k] for k in self.ordered(keys)))
 
     def total(self, keep=lambda key: True) -> tuple[np.ndarray, float]:
         keys = [k for k in self.S if keep(k)]

@@ -227,7 +227,7 @@ def input_coherence(stats: Statistics, lay: Layout, keys, p, extras, sensors) ->
     raw = np.clip(num / np.maximum(R, 1e-300), 0.0, 1.0)
     # An estimate from n averages of a residual independent of p inputs reads about p / n;
     # remove that bias (n = periodogram bins in the band x windows).
-    seconds = sum(stats.seconds[k] for k in keys)
+    seconds = stats.seconds_of(keys)
     bias = np.minimum(n_in / np.maximum(np.diff(stats.edges) * seconds, 1.0), 0.99)[:, None]
     return np.clip((raw - bias) / (1 - bias), 0.0, 1.0)
 

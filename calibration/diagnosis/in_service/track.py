@@ -76,7 +76,7 @@ def _collect(stats: Statistics, keys, settings: TrackSettings) -> _Data:
     sel = (f >= settings.band[0]) & (f <= settings.band[1])
     ys, ws, ks, fs, cs, vs = [], [], [], [], [], []
     nbins = np.diff(stats.edges) * stats.segment_s  # periodogram bins per band and segment
-    for key in keys:
+    for key in stats.ordered(keys):
         v = key[1] + 0.5 * _bin_width(stats)
         for c, name in enumerate(CHANNELS):
             i = stats.channels.index(name)
@@ -210,7 +210,7 @@ def speed_folds(stats: Statistics, keys) -> list[tuple[set, set]]:
     if len(bins) < 2:
         return []
     n = min(3, len(bins))
-    secs = np.array([sum(stats.seconds[k] for k in keys if k[1] == b) for b in bins])
+    secs = np.array([stats.seconds_of({k for k in keys if k[1] == b}) for b in bins])
     share = np.cumsum(secs) / secs.sum()
     group = np.minimum((share - 0.5 * secs / secs.sum()) * n, n - 1).astype(int)  # by each bin's data midpoint
     group_of = dict(zip(bins, group))
