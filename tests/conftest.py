@@ -160,3 +160,21 @@ def car_fmus(tmp_path_factory, car_track):
     out = tmp_path_factory.mktemp("fmus")
     spec = car2d_spec(INTERCITY_TRAILER.as_dict(), track=car_track[0])
     return spec, {v: build_fmu(spec, v, out / f"car{v}.fmu") for v in (2, 3)}
+
+
+# ------------------------------------------------------------------ the model registry's FMUs
+#: what makes a registry model's example calibration quick to build in tests: the box at
+#: coarse panel orders (its full-order FMU takes long to build)
+FAST_EXAMPLES = {"box": {"order_change": COARSE_BOX_ORDERS}}
+
+
+@pytest.fixture(scope="session")
+def example_calibration():
+    """name -> a fresh copy of the example calibration of the registry's model ``name``
+    (railcal.registry.MODELS), quick to build (:data:`FAST_EXAMPLES`)."""
+    from railcal.registry import MODELS
+
+    def make(name: str) -> dict:
+        return {**MODELS[name].example_calibration(), **FAST_EXAMPLES.get(name, {})}
+
+    return make
