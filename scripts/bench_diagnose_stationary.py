@@ -1,4 +1,4 @@
-"""Benchmark (issue 7): the diagnosis of stationary excitation tests over many synthetic
+"""Benchmark (issue 7): the diagnosis of excitation tests over many synthetic
 campaigns with a hidden effect, magnitudes drawn across each range, and effect-free ones.
 
 For each case: ``synth excitation`` (the truth simulator, default settings: 2 runs of
@@ -6,7 +6,7 @@ For each case: ``synth excitation`` (the truth simulator, default settings: 2 ru
 ``local_panel_softening`` (divisor drawn uniformly in 3-10), no effect, or an effect
 outside the catalogue, ``sensor_bracket`` (one accelerometer on a resilient bracket,
 natural frequency drawn uniformly in 10-28 Hz; it must come out ``unexplained``), then
-:func:`calibration.diagnosis.stationary.diagnose_stationary` against the effect-free box
+:func:`calibration.diagnosis.excitation.diagnose_excitation` against the effect-free box
 model. Seeds run from ``--start`` (2000) upwards, one per campaign; magnitudes come from
 ``numpy.random.default_rng(start)``. Prints one line per campaign, then the confusion
 matrix (rows: hidden effect, columns: diagnosed cause), the right-cause rate per effect,
@@ -58,7 +58,7 @@ def _init(order_change: int) -> None:
 
 def _case(case: dict) -> dict:
     from calibration.data.campaign import open_campaign
-    from calibration.diagnosis.stationary import diagnose_stationary
+    from calibration.diagnosis.excitation import diagnose_excitation
     from calibration.truth.effects import EffectChoice, effect_spec
     from calibration.truth.excitation import synth_excitation
 
@@ -69,20 +69,21 @@ def _case(case: dict) -> dict:
         t0 = time.perf_counter()
         truth = synth_excitation(root, seed=case["seed"], settings=settings, effect=effect, model=model)
         t1 = time.perf_counter()
-        result = diagnose_stationary(open_campaign(root), model=model)
+        result = diagnose_excitation(open_campaign(root), model=model)
         t2 = time.perf_counter()
     eff = truth["effect"] or {}
     hidden = {k: eff[k] for k in ("panel", "position_m", "mounting_frequency_hz", "equipment_mass_kg", "sensor",
                                   "frequency_hz") if k in eff}
-    return {**case, "cause": result["cause"], "hidden": hidden,
-            "found": result["extension"]["parameters"] if result["extension"] else None,
-            "gain": result["gain"]["reduction"] if result["gain"] else None,
-            "hypotheses": {h["name"]: round(h["gain"], 4) for h in result["hypotheses"]},
-            "baseline_heldout_error": result["evidence"]["heldout_error_mean"],
-            "unpaired_modes": [{"hz": round(r["identified_hz"], 3), "mac": round(r["mac"], 3),
-                                "heldout_error_near": r["heldout_error_near"]}
-                               for r in result["evidence"]["unpaired_modes"]],
-            "summary": result["evidence"]["summary"],
+    ext = result.extension
+    return {**case, "cause": result.cause, "hidden": hidden,
+            "found": dict(ext.parameters) if ext else None,
+            "gain": ext.gain if ext else None,
+            "hypotheses": {h.name: round(h.gain, 4) for h in result.hypotheses},
+            "baseline_heldout_error": result.evidence.heldout_error_mean,
+            "unpaired_modes": [{"hz": round(r.identified_hz, 3), "mac": round(r.mac, 3),
+                                "heldout_error_near": r.heldout_error_near}
+                               for r in result.evidence.unpaired],
+            "summary": list(result.summary),
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
 

@@ -1,4 +1,4 @@
-"""Benchmark: the stationary diagnosis on every seed of tests/test_diagnosis_stationary.py's
+"""Benchmark: the excitation-test diagnosis on every seed of tests/test_diagnosis_stationary.py's
 campaign table, including the series once set aside after a failure (a seed is never
 retired for failing: it stays a case, and the rate counts it).
 
@@ -54,26 +54,27 @@ def _init() -> None:
 
 def _case(case: dict) -> dict:
     from calibration.data.campaign import open_campaign
-    from calibration.diagnosis.stationary import StationarySettings, diagnose_stationary
+    from calibration.diagnosis.excitation import ExcitationDiagnosisSettings, diagnose_excitation
     from calibration.truth.effects import UNCATALOGUED, EffectChoice, effect_spec
     from calibration.truth.excitation import synth_excitation
 
-    fast = StationarySettings(basis_extra=32, derivative_modes=12, refine_iterations=30, starts=2)  # the test's FAST
+    # the test file's FAST
+    fast = ExcitationDiagnosisSettings(basis_extra=32, derivative_modes=12, refine_iterations=30, starts=2)
     effect = None if case["effect"] is None else EffectChoice(effect_spec(case["effect"]), case["magnitude"])
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / f"shaker_{case['seed']}"
         truth = synth_excitation(root, seed=case["seed"], settings=_MODEL["settings"], effect=effect,
                                  model=_MODEL["model"])
         t0 = time.perf_counter()
-        result = diagnose_stationary(open_campaign(root), model=_MODEL["model"], settings=fast)
+        result = diagnose_excitation(open_campaign(root), model=_MODEL["model"], settings=fast)
         wall = time.perf_counter() - t0
     hidden = case["effect"] or "none"
     expected = "unexplained" if hidden in UNCATALOGUED else hidden
     eff = truth["effect"] or {}
-    return {**case, "cause": result["cause"], "expected": expected, "right": result["cause"] == expected,
-            "gain": result["gain"]["reduction"] if result["gain"] else None, "panel": eff.get("panel"),
-            "hypotheses": {h["name"]: round(h["gain"], 3) for h in result["hypotheses"]},
-            "baseline_heldout_error": result["evidence"]["heldout_error_mean"], "wall_s": wall}
+    return {**case, "cause": result.cause, "expected": expected, "right": result.cause == expected,
+            "gain": result.extension.gain if result.extension else None, "panel": eff.get("panel"),
+            "hypotheses": {h.name: round(h.gain, 3) for h in result.hypotheses},
+            "baseline_heldout_error": result.evidence.heldout_error_mean, "wall_s": wall}
 
 
 def main() -> int:

@@ -143,9 +143,10 @@ def vertical_operators(model: BoxModel, sensors, exciter) -> tuple[np.ndarray, n
     return sensor_operator(model, sensors), sensor_operator(model, (exciter,))[0]
 
 
-def rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
-    """Fraction of each mode's carbody motion that is a rigid-body motion (least-squares
-    fit of a + theta x r to the displacements at 9 points of every panel)."""
+def rigid_probe(model: BoxModel) -> tuple[np.ndarray, np.ndarray]:
+    """Where a mode's rigid-body share is measured: the displacement rows D (3 n, n_dof) at
+    n = 9 points of every panel (its centre and +-80 % of its half sides) and the rigid-body
+    motion fields R (3 n, 6) at those points (translation a and rotation theta: a + theta x r)."""
     D, R = [], []
     for pn in model.vehicle.panels:
         for s in (-0.8, 0.0, 0.8):
@@ -153,8 +154,14 @@ def rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
                 r = np.asarray(pn.centre, float) + pn.axes[:, 0] * pn.a / 2 * s + pn.axes[:, 1] * pn.b / 2 * t
                 D.append(model.displacement(pn.name, r))
                 R.append(np.hstack([np.eye(3), [[0, r[2], -r[1]], [-r[2], 0, r[0]], [r[1], -r[0], 0]]]))
-    d = np.vstack(D) @ X
-    R = np.vstack(R)
+    return np.vstack(D), np.vstack(R)
+
+
+def rigid_share(model: BoxModel, X: np.ndarray) -> np.ndarray:
+    """Fraction of each mode's carbody motion that is a rigid-body motion (least-squares
+    fit of a + theta x r to the displacements at the points of :func:`rigid_probe`)."""
+    D, R = rigid_probe(model)
+    d = D @ X
     fit = R @ np.linalg.lstsq(R, d, rcond=None)[0]
     return np.sum(fit**2, axis=0) / np.sum(d**2, axis=0)
 

@@ -1,4 +1,4 @@
-"""Figures of a stationary-test diagnosis (:func:`.stationary.diagnose_stationary`): the
+"""Figures of an excitation-test diagnosis (:class:`.result.ExcitationDiagnosis`): the
 held-out FRFs measured and modelled before and after the extension on the channels the
 baseline misses most, and the MAC of the identified modes against the model's."""
 from __future__ import annotations
@@ -8,33 +8,34 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..data.outputs import save_figure
+from ...data.outputs import save_figure
+from .result import ExcitationDiagnosis
 
 
-def plot_stationary_diagnosis(result: dict, stem, channels: int = 6) -> list[Path]:
-    """Write ``<stem>_frf.png`` and ``<stem>_mac.png`` from ``result["_plot"]``; returns
-    their paths."""
+def plot_excitation_diagnosis(result: ExcitationDiagnosis, stem, channels: int = 6) -> list[Path]:
+    """Write ``<stem>_frf.png`` (the ``channels`` the baseline misses most) and
+    ``<stem>_mac.png``; returns their paths."""
     stem = Path(stem)
-    data = result["_plot"]
-    return [_frf(data, stem.with_name(stem.name + "_frf.png"), channels),
-            _mac(data, stem.with_name(stem.name + "_mac.png"))]
+    return [_frf(result, stem.with_name(stem.name + "_frf.png"), channels),
+            _mac(result, stem.with_name(stem.name + "_mac.png"))]
 
 
-def _frf(data: dict, path: Path, channels: int) -> Path:
-    f = data["frequency"]
-    before = np.asarray(data["error_before"])
+def _frf(result: ExcitationDiagnosis, path: Path, channels: int) -> Path:
+    f = result.measured.frequency
+    ext = result.extension
+    before = np.asarray(result.evidence.heldout.error)
     order = np.argsort(-before)[:channels]  # the channels the baseline misses most
     cols = 2 if len(order) > 1 else 1
     rows = int(np.ceil(len(order) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(12, 2.8 * rows), sharex=True, squeeze=False)
     for ax, i in zip(axes.ravel(), order):
-        ax.semilogy(f, np.abs(data["measured"][:, i]), "k-", lw=1.0, label="measured, held out (H1)")
-        ax.semilogy(f, np.abs(data["baseline"][:, i]), "--", color="tab:red", lw=0.9, label="calibrated box model")
-        title = f"{data['sensors'][i]}: error {before[i]:.1f}"
-        if data["extension"] is not None:
-            ax.semilogy(f, np.abs(data["extension"][:, i]), "-", color="tab:blue", lw=0.9,
-                        label=f"with {data['extension_name']}")
-            title += f" -> {data['error_after'][i]:.2f}"
+        ax.semilogy(f, np.abs(result.measured.H[:, i]), "k-", lw=1.0, label="measured, held out (H1)")
+        ax.semilogy(f, np.abs(result.evidence.heldout.H[:, i]), "--", color="tab:red", lw=0.9,
+                    label="calibrated box model")
+        title = f"{result.sensors[i]}: error {before[i]:.1f}"
+        if ext is not None:
+            ax.semilogy(f, np.abs(ext.heldout.H[:, i]), "-", color="tab:blue", lw=0.9, label=f"with {ext.name}")
+            title += f" -> {ext.heldout.error[i]:.2f}"
         ax.set_title(title + " x noise", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
     for ax in axes.ravel()[len(order):]:
@@ -44,16 +45,17 @@ def _frf(data: dict, path: Path, channels: int) -> Path:
     for ax in axes[:, 0]:
         ax.set_ylabel("|a / F| [(m/s^2)/N]")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"held-out FRFs, exciter force to floor accelerations; cause: {data['cause']}", fontsize=10)
+    fig.suptitle(f"held-out FRFs, exciter force to floor accelerations; cause: {result.cause}", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)
 
 
-def _mac(data: dict, path: Path) -> Path:
-    panels = [("calibrated box model", data["mac"], data["mac_cols"])]
-    if data.get("mac_after") is not None:
-        panels.append((f"with {data['extension_name']}", data["mac_after"], data["mac_cols_after"]))
-    rows = data["mac_rows"]
+def _mac(result: ExcitationDiagnosis, path: Path) -> Path:
+    base = result.evidence.modes
+    panels = [("calibrated box model", base.mac, base.cols)]
+    if result.extension_modes is not None:
+        panels.append((f"with {result.extension.name}", result.extension_modes.mac, result.extension_modes.cols))
+    rows = base.rows
     width = sum(1.5 + 0.45 * len(c) for _, _, c in panels)
     fig, axes = plt.subplots(1, len(panels), figsize=(max(width, 5), 1.5 + 0.45 * max(len(rows), 1)), squeeze=False)
     for ax, (title, mac, cols) in zip(axes[0], panels):

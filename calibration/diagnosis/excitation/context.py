@@ -1,0 +1,103 @@
+"""What every fit of one diagnosis reads: the campaign split and identified, the measured
+FRFs of both parts, the full model's operators and the factors' bounds."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...calibrate_box import box_search
+from ...data.campaign import Campaign
+from ...data.errors import CampaignError, InputError
+from ...identification.excitation import ShakerIdentification, identify_excitation
+from ...models.box import BoxModel
+from ...models.box.assembly import carbody_mass
+from ...models.box.shinkansen import shinkansen_model
+from .basis import Operators, modes_below
+from .data import MeasuredFRF, Part, measured_frf, split_campaign
+from .settings import ExcitationDiagnosisSettings
+
+#: the campaign kind this diagnosis reads (fixed by the campaign format, docs/campaign-format.md)
+KIND = "stationary_excitation"
+
+
+@dataclass(frozen=True, eq=False)
+class Context:
+    """One diagnosis's fixed inputs (the training part's identification and FRFs are what
+    every fit is fitted to; the held-out ones are used once, to judge)."""
+
+    campaign: Campaign
+    settings: ExcitationDiagnosisSettings
+    ops: Operators
+    train: Part
+    test: Part
+    ident: ShakerIdentification  # of the training part
+    ident_test: ShakerIdentification
+    meas: MeasuredFRF  # training FRFs in the band
+    meas_test: MeasuredFRF
+    low: np.ndarray  # factor bounds (priors)
+    high: np.ndarray
+    nominal: np.ndarray  # the priors' means within the bounds: the nominal factors
+    default_zeta: float  # median identified damping ratio
+    carbody_mass: float  # [kg]
+    say: Callable[[str], None]
+    n_modes: int  # full-model modes kept in every reduced basis (those below settings.basis_hz)
+
+    @property
+    def model(self) -> BoxModel:
+        return self.ops.model
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.ops.model.names
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        return self.ident.sensors
+
+
+def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, model: BoxModel | None, say,
+                  without: tuple[str, ...] = ()) -> Context:
+    """Check the campaign (kind, excitation, priors), split it, identify both parts and
+    build the operators; ``without``: channels left out. Bad input raises
+    :class:`InputError` naming the campaign.toml key; a training part without modes,
+    :class:`CampaignError`."""
+    meta = campaign.meta
+    toml = campaign.root / "campaign.toml"
+    if meta.kind != KIND:
+        raise InputError(f"diagnose_excitation reads {KIND} campaigns, not {meta.kind}", path=toml, key="kind")
+    if meta.excitation is None:
+        raise InputError(f"a {KIND} campaign needs [excitation] sensor = ...", path=toml, key="excitation")
+    model = shinkansen_model() if model is None else model
+    unknown = sorted(set(meta.priors) - set(model.names))
+    if unknown:
+        raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(model.names)}",
+                         path=toml, key="priors")
+    train, test = split_campaign(campaign, without)
+    ident = identify_excitation(train, settings.shaker)
+    ident_test = identify_excitation(test, settings.shaker)
+    if not ident.modes:
+        raise CampaignError(f"no mode identified in {settings.shaker.band} Hz of the training part "
+                            f"({', '.join(train.label)}); nothing to calibrate to", path=campaign.root / "runs")
+    meas, meas_test = measured_frf(ident.frf, settings.band), measured_frf(ident_test.frf, settings.band)
+    if meas.frequency.size < 20:
+        raise InputError(f"the comparison band {settings.band} Hz holds {meas.frequency.size} spectral lines; "
+                         "need at least 20", path=toml, key="sampling.rate")
+    sensors = tuple(meta.sensor(n) for n in ident.sensors)
+    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    try:
+        ops = Operators.build(model, sensors, exciter)
+    except ValueError as exc:
+        raise InputError(f"{exc}", path=toml, key="sensors") from None
+    search = box_search(meta.priors, model.names)
+    low = np.array([q.low for q in search])
+    high = np.array([q.high for q in search])
+    zetas = [m.damping_ratio for m in ident.modes if m.damping_ratio]
+    default = float(np.clip(np.median(zetas), *settings.damping_range)) if zetas else 0.02
+    p_nom = np.clip([q.mean for q in search], low, high)
+    n_modes = modes_below(model, p_nom, settings.basis_hz)
+    say(f"training {', '.join(train.label)}: {len(ident.modes)} modes; held out {', '.join(test.label)}; "
+        f"reduced bases keep the model's {n_modes} modes below {settings.basis_hz:g} Hz")
+    return Context(campaign, settings, ops, train, test, ident, ident_test, meas, meas_test, low, high, p_nom, default,
+                   carbody_mass(model), say, n_modes)

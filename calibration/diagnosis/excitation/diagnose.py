@@ -1,0 +1,103 @@
+"""The diagnosis of an excitation test, stage by stage: context, baseline, every extension
+of the registry, the baseline re-fitted where a hypothesis found it a better basin, the
+evidence, the decision, the result."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ...data.campaign import Campaign
+from ...data.errors import CampaignError, InputError
+from ...models.box import BoxModel
+from ...progress import counter
+from ..threads import one_blas_thread
+from .baseline import baseline_start, fit_baseline, modal_damping
+from .context import Context, build_context
+from .decision import judge, misfit_alarms, name_cause, summary_lines
+from .evidence import HeldOut, compare_modes, confined_channel, gather_evidence, heldout, without_channel
+from .extensions import EXTENSIONS
+from .fitting import Fitted, factor_bounds, fit
+from .least_squares import total_error
+from .result import BaselineRecord, ExcitationDiagnosis, Restart
+from .settings import ExcitationDiagnosisSettings
+
+
+def _refit_baseline(ctx: Context, base: Fitted, held: HeldOut,
+                    fits: dict[str, Fitted]) -> tuple[Fitted, HeldOut, tuple[Restart, ...]]:
+    """A hypothesis may gain only because its fit found a better basin for the baseline's
+    own factors: the baseline is re-fitted from each gaining hypothesis's factors (without
+    the extension) and kept where it fits the training part better."""
+    s = ctx.settings
+    n = len(ctx.sensors)
+    restarts = []
+    for name, fitted in fits.items():
+        if judge(ctx, EXTENSIONS[name], fitted, held.error).penalised_gain < s.min_gain:
+            continue
+        start = baseline_start(ctx, base, fitted)
+        e0 = total_error(base.family, start, ctx.meas, s.floor)
+        if e0 >= base.train_error:  # the extension's own factors do not fit better without it
+            restarts.append(Restart(name, e0 / n, None, False))
+            continue
+        lo, hi = factor_bounds(ctx, base.layout.n_slots)
+        alt = fit(ctx, "baseline", base.layout, base.family.slots, start, lo, hi)
+        restarts.append(Restart(name, e0 / n, alt.train_error / n, bool(alt.train_error < base.train_error)))
+        if alt.train_error < base.train_error:
+            base = alt
+            held = heldout(ctx, base)
+            ctx.say(f"baseline re-fitted from the factors of {name}: held-out error {np.mean(held.error):.2f} x noise")
+    return base, held, tuple(restarts)
+
+
+@one_blas_thread  # the answer must not depend on the machine's thread count (..threads)
+def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | None = None,
+                        settings: ExcitationDiagnosisSettings = ExcitationDiagnosisSettings()) -> ExcitationDiagnosis:
+    """Diagnose an excitation-test campaign (kind ``stationary_excitation``; the package
+    docstring tells how).
+
+    ``progress``: a callable taking a message (and driving a progress bar), or None.
+    ``model``: the assembled box model without effect (default: the Shinkansen-type vehicle
+    at full order); pass the model the campaign should be compared with (e.g. a coarse one
+    in tests).
+
+    Bad input raises :class:`InputError` naming the campaign.toml key."""
+    t0 = time.perf_counter()
+    say = progress or (lambda msg: None)
+    s = settings
+    stages = counter(progress, 3 + len(EXTENSIONS), "shaker diagnosis", unit="stage")
+    ctx = build_context(campaign, s, model, say)
+    stages.update()
+    base, swarm = fit_baseline(ctx)
+    stages.update()
+    held = heldout(ctx, base)
+    say(f"baseline: held-out error {np.mean(held.error):.2f} x noise (training "
+        f"{base.train_error / len(ctx.sensors):.2f})")
+    fits = {}
+    for ext in EXTENSIONS.values():
+        fits[ext.name] = ext.fit(ctx, base)[0]
+        stages.update()
+        h = judge(ctx, ext, fits[ext.name], held.error)
+        say(f"{ext.name}: held-out gain {h.gain:.1%} (training error {h.training_error_mean:.2f}), "
+            + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in h.parameters.items()))
+    base, held, restarts = _refit_baseline(ctx, base, held, fits)
+    hypotheses = tuple(judge(ctx, EXTENSIONS[name], f, held.error) for name, f in fits.items())
+    per_channel = {n: float(v) for n, v in zip(ctx.sensors, held.error)}
+    one = confined_channel(per_channel, s)
+    left_out = None
+    if one is not None and len(ctx.sensors) > 2:
+        try:
+            left_out = without_channel(campaign, s, ctx.model, one[0], say)
+        except (CampaignError, InputError) as exc:  # e.g. no mode identified without it: the check is skipped
+            say(f"re-calibration without {one[0]} not possible: {exc}")
+    evidence = gather_evidence(ctx, base, held, compare_modes(ctx, base), swarm, left_out)
+    alarms, notes = misfit_alarms(per_channel, evidence.unpaired, s, without_channel=left_out)
+    cause, best = name_cause(hypotheses, alarms, s)
+    summary = summary_lines(cause, best, alarms, notes, evidence, hypotheses)
+    extension_modes = None if best is None else compare_modes(ctx, fits[best.name])
+    stages.update()
+    stages.close()
+    record = BaselineRecord(base.factors(ctx.names), swarm, restarts,
+                            {n: (a, b) for n, a, b in zip(ctx.names, ctx.low, ctx.high)}, modal_damping(base))
+    return ExcitationDiagnosis(str(campaign.root), cause, summary, ctx.meas_test, evidence, record, hypotheses, best,
+                               extension_modes, tuple(ctx.train.label), tuple(ctx.test.label), s, ctx.n_modes,
+                               ctx.model.n_dof, time.perf_counter() - t0)

@@ -1,0 +1,55 @@
+"""The registry of hypotheses: one extension of the box model per excitation-test cause of
+the effects catalogue. Adding a cause is one entry here (and its fit)."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .equipment import fit_equipment
+from .softening import DIVISOR_RANGE, fit_softening
+
+
+@dataclass(frozen=True)
+class ExcitationExtension:
+    """One cause of the effects catalogue as a physical addition to the box model.
+
+    parameters : what is fitted (counted for the complexity penalty)
+    fit : (context, baseline fit) -> list of fits, best first
+    null_end : (parameter, bound) where the effect vanishes at the edge of its search: a fit
+        that ends there gains by adjusting the baseline, not by the effect, and is not named
+        as the cause
+    """
+
+    name: str
+    description: str
+    parameters: tuple[str, ...]
+    fit: Callable
+    null_end: tuple[str, float] | None = None
+
+    def at_null_end(self, parameters: dict, tol: float = 0.01) -> bool:
+        """Whether the fitted ``parameters`` end within ``tol`` (log) of :attr:`null_end`."""
+        if self.null_end is None:
+            return False
+        name, bound = self.null_end
+        return bool(abs(np.log(float(parameters[name]) / bound)) <= tol)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.parameters)
+
+
+#: The registry: one extension per excitation-test cause of the effects catalogue.
+EXTENSIONS: dict[str, ExcitationExtension] = {e.name: e for e in (
+    ExcitationExtension(
+        "underfloor_equipment",
+        "a resiliently mounted underfloor mass: rigid mass on a vertical spring-damper under a floor point, "
+        "coupled to the carbody's modes through their values at the mount",
+        ("equipment_mass_kg", "mounting_frequency_hz", "mounting_damping_ratio", "mount_x_m", "mount_y_m"),
+        fit_equipment),
+    ExcitationExtension(
+        "local_panel_softening",
+        "one carbody panel (roof, floor, side or end) with its rigidities divided by its own factor",
+        ("panel", "rigidity_divisor"), fit_softening, null_end=("rigidity_divisor", DIVISOR_RANGE[0])),
+)}

@@ -1,0 +1,71 @@
+"""Frequency responses of a modal model with and without an underfloor mass, and the
+normalised error of a model against measured FRFs.
+
+Error of a model on one channel o, in units of the noise:
+
+    E_o = mean over lines in the band of |log(H_model / H_meas)|^2 / (2 (sigma^2 + floor^2))
+
+with sigma^2 the variance of log|H1| (:class:`.data.MeasuredFRF`) and ``floor`` the model's
+accuracy floor: E is about 1 when a model explains the channel within the noise. FRAC and
+the rms log-magnitude error are those of :mod:`calibration.signals.modal`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .data import MeasuredFRF
+
+
+def modal_accelerance(f, omega, zeta, sensor_shapes, exciter_shape) -> np.ndarray:
+    """Accelerance H[i, o] = a_o / F [(m/s^2)/N] at ``f[i]`` [Hz] of M-normalised modes:
+    natural frequencies ``omega`` (r,) [rad/s], damping ratios ``zeta`` (r,), values at the
+    sensors ``sensor_shapes`` (n_s, r) and at the exciter ``exciter_shape`` (r,) [1/sqrt(kg)];
+    time dependence exp(+i omega t)."""
+    w = 2 * np.pi * np.asarray(f, float)[:, None]
+    Z = omega**2 - w**2 + 2j * zeta * omega * w
+    return (-w**2 * exciter_shape / Z) @ sensor_shapes.T
+
+
+def mount_impedance(w, mass: float, frequency_hz: float, damping_ratio: float) -> np.ndarray:
+    """kappa(omega) [N/m] of a rigid mass ``mass`` [kg] on a vertical spring-damper
+    (``frequency_hz`` = sqrt(k_e / m_e) / 2 pi, ``damping_ratio`` = c_e / (2 sqrt(k_e m_e))),
+    seen from its mount: f_m = -kappa u_m with kappa = -omega^2 m k* / (k* - omega^2 m),
+    k* = k_e + i omega c_e; ``w`` [rad/s] of any shape."""
+    k = mass * (2 * np.pi * frequency_hz) ** 2
+    kstar = k + 1j * w * 2 * damping_ratio * np.sqrt(k * mass)
+    return -w**2 * mass * kstar / (kstar - w**2 * mass)
+
+
+def equipment_accelerance(f, omega, zeta, sensor_shapes, exciter_shape, mount_shape, mass: float,
+                          frequency_hz: float, damping_ratio: float) -> np.ndarray:
+    """Accelerance of the modal model of :func:`modal_accelerance` carrying a rigid mass
+    ``mass`` [kg] on a vertical spring-damper (:func:`mount_impedance`) at a point where the
+    modes' vertical displacements are ``mount_shape`` (r,) [1/sqrt(kg)].
+
+    The equipment is a point impedance kappa; the structure's modal dynamic stiffness
+    Z = diag(omega_k^2 - omega^2 + 2 i zeta_k omega_k omega) with kappa a a^T added is
+    inverted by Sherman-Morrison, line by line: exact for the coupled system (the same as
+    re-diagonalising it with the mount's damper coupling the modes, as the truth
+    simulator's ``add_equipment`` does)."""
+    w = 2 * np.pi * np.asarray(f, float)[:, None]
+    Z = omega**2 - w**2 + 2j * zeta * omega * w  # (n_f, r)
+    kappa = mount_impedance(w[:, 0], mass, frequency_hz, damping_ratio)
+    a = np.asarray(mount_shape, float)
+    G_se = (exciter_shape / Z) @ sensor_shapes.T  # (n_f, n_s) receptances
+    G_sm = (a / Z) @ sensor_shapes.T
+    G_me = (a * exciter_shape / Z).sum(axis=1)
+    G_mm = (a * a / Z).sum(axis=1)
+    U = G_se - (kappa * G_me / (1 + kappa * G_mm))[:, None] * G_sm
+    return -w**2 * U
+
+
+def normalised_error_lines(meas: MeasuredFRF, H_model: np.ndarray, floor: float) -> np.ndarray:
+    """The summand of E_o (module docstring) per spectral line and channel (n_f, n_s) [-]."""
+    r = np.log(H_model / meas.H)
+    r = r.real**2 + np.angle(H_model / meas.H) ** 2
+    return r / (2 * (meas.sigma2 + floor**2))
+
+
+def normalised_error(meas: MeasuredFRF, H_model: np.ndarray, floor: float) -> np.ndarray:
+    """E_o per channel (module docstring) [-]: about 1 when the model is within the noise."""
+    return np.mean(normalised_error_lines(meas, H_model, floor), axis=0)
