@@ -1,9 +1,10 @@
 """``railcal export-fmu``: a calibration file (``railcal calibrate --out``) to an FMU.
 
-The calibration names its model: ``car2d`` gives the car FMU of ``shared/spec/interfaces.md``
-(calibrated parameters as tunable parameters), ``box`` the box-type vehicle FMU. A track
-recording (campaign format, checked on reading) is shipped in ``resources/`` for
-stand-alone running. A campaign adds an output per calibrated acceleration sensor (car) or
+Each model has its description builder: :func:`car2d_fmu_spec` gives the car FMU of
+``shared/spec/interfaces.md`` (calibrated parameters as tunable parameters),
+:func:`box_fmu_spec` the box-type vehicle FMU; the application's model registry picks one
+by the calibration's ``model``. A track recording (campaign format, checked on reading)
+is shipped in ``resources/`` for stand-alone running. A campaign adds an output per calibrated acceleration sensor (car) or
 gives the box FMU's measurement points (box; otherwise the calibration file's).
 """
 from __future__ import annotations
@@ -19,7 +20,7 @@ from calibration.data.errors import InputError
 from calibration.models.parameters import CarParameters
 
 from .build import BuiltFMU, build_fmu
-from .variables import CAR_BODIES, TrackTooShort, car2d_spec
+from .variables import CAR_BODIES, ModelSpec, TrackTooShort, car2d_spec
 
 
 def car_sensors(campaign, p: CarParameters) -> tuple:
@@ -52,33 +53,41 @@ def _track_csv(track: Path, folder: Path) -> Path:
     return out
 
 
-def export_fmu(calibration: dict, fmi_version: int, out: Path, *, track: Path | None = None, campaign=None,
-               platforms: tuple[str, ...] | None = None, cutoff_hz: float | None = None) -> BuiltFMU:
-    model = calibration.get("model") if isinstance(calibration, dict) else None
-    if model not in ("car2d", "box"):
-        raise InputError(f"the calibration names model {model!r}; export-fmu builds car2d and box", key="model")
+def car2d_fmu_spec(calibration: dict, *, track: Path | None = None, campaign=None,
+                   cutoff_hz: float | None = None) -> ModelSpec:
+    """The car FMU of a car2d calibration: its parameters as tunable parameters, an output per
+    vertical accelerometer of ``campaign`` on the car's bodies (when given)."""
+    if cutoff_hz is not None:
+        raise InputError("--cutoff-hz is for the box model", key="--cutoff-hz")
+    p = CarParameters.from_mapping(calibration["parameters"])  # names, finiteness and physical ranges checked here
+    sensors = car_sensors(campaign, p) if campaign is not None else ()
+    return car2d_spec(p.as_dict(), track=track, sensors=sensors)
+
+
+def box_fmu_spec(calibration: dict, *, track: Path | None = None, campaign=None,
+                 cutoff_hz: float | None = None) -> ModelSpec:
+    """The box-type vehicle FMU of a box calibration, its outputs at the campaign's
+    accelerometers when given, else at the points the calibration was fitted at."""
+    from .box import DEFAULT_CUTOFF_HZ, box_spec
+
+    return box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track,
+                    points=box_points(campaign) if campaign is not None else None)
+
+
+def export_fmu(calibration: dict, fmi_version: int, out: Path, *, spec_for, track: Path | None = None,
+               campaign=None, platforms: tuple[str, ...] | None = None, cutoff_hz: float | None = None) -> BuiltFMU:
+    """Build the FMU of ``calibration`` into ``out``. ``spec_for(calibration, track=, campaign=,
+    cutoff_hz=)`` gives the model's description (the model registry's FMU builder:
+    :func:`car2d_fmu_spec`, :func:`box_fmu_spec`); ``track``: a recording shipped for
+    stand-alone running."""
     if fmi_version not in (2, 3):
         raise InputError(f"--fmi-version must be 2 or 3, got {fmi_version!r}", key="--fmi-version")
-    params = calibration.get("parameters")
-    if not isinstance(params, dict):
+    if not isinstance(calibration.get("parameters") if isinstance(calibration, dict) else None, dict):
         raise InputError("the calibration has no parameters table", key="parameters")
     with tempfile.TemporaryDirectory(prefix="railcal_track_") as tmp:
         track_csv = _track_csv(track, Path(tmp)) if track is not None else None
-        if model == "box":
-            from .box import DEFAULT_CUTOFF_HZ, box_spec
-
-            try:
-                spec = box_spec(calibration, cutoff_hz=cutoff_hz or DEFAULT_CUTOFF_HZ, track=track_csv,
-                                points=box_points(campaign) if campaign is not None else None)
-            except TrackTooShort as e:
-                raise InputError(str(e), path=track) from None
-            return build_fmu(spec, fmi_version, out, platforms=platforms)
-        if cutoff_hz is not None:
-            raise InputError("--cutoff-hz is for the box model", key="--cutoff-hz")
-        p = CarParameters.from_mapping(params)  # names, finiteness and physical ranges checked here
-        sensors = car_sensors(campaign, p) if campaign is not None else ()
         try:
-            spec = car2d_spec(p.as_dict(), track=track_csv, sensors=sensors)
+            spec = spec_for(calibration, track=track_csv, campaign=campaign, cutoff_hz=cutoff_hz)
         except TrackTooShort as e:
             raise InputError(str(e), path=track) from None
         return build_fmu(spec, fmi_version, out, platforms=platforms)

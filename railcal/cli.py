@@ -7,20 +7,20 @@ Progress goes to stderr unless ``--quiet``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import traceback
 from pathlib import Path
 
-from calibration.data.campaign import open_campaign, read_input_file
-from calibration.data.outputs import check_campaign_output, check_outputs, read_result, write_result
 from calibration.data.errors import InputError
-from calibration.models.parameters import CAR_PARAMETER_SPECS, ParameterError
-from calibration.swarm_defaults import (CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_MIN_MAC, TYPED_POLISH_STEPS,
-                                        TYPED_REFINE_ROUNDS, TYPED_SWARMS)
+from calibration.data.outputs import check_campaign_output, check_outputs, write_result
+from calibration.models.parameters import ParameterError
+from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_SWARMS
 
-EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
+from .common import (EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, about_calibration, campaign_of, names, progress_for,
+                     read_calibration)
+from .registry import MODELS, model_for_campaign, model_named, model_of_calibration
+from .synth import cmd_synth_excitation, cmd_synth_in_service
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -82,169 +82,31 @@ def _truth_path(campaign_dir) -> Path:
     return Path(f"{Path(campaign_dir).resolve()}.truth.json")
 
 
-def _names(*paths) -> str:
-    """'a, b and c' of the files written (None: not written)."""
-    names = [str(p) for p in paths if p is not None]
-    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
-
-
-def _truth_frequencies(campaign_dir) -> dict | None:
-    """Frequencies from a synthetic campaign's truth beside it, for the plots; None otherwise."""
-    path = _truth_path(campaign_dir)
-    if not path.is_file():
-        return None
-    try:
-        return {k: float(v) for k, v in json.loads(read_input_file(path))["frequencies_hz"].items()}
-    except (InputError, ValueError, KeyError, TypeError, AttributeError) as e:
-        print(f"railcal: warning: {path} is not a readable truth file ({e}); plotted without it", file=sys.stderr)
-        return None
-
-
-def _open_campaign(args):
-    """The command's campaign, its run files held inside its folder unless --allow-outside."""
-    return open_campaign(args.campaign, allow_outside=args.allow_outside)
-
-
 def _allow_outside_option(parser) -> None:
     parser.add_argument("--allow-outside", action="store_true",
                         help="read run and track files that are links resolving outside the campaign folder "
                              "(refused by default: a campaign is read from its own folder only)")
 
 
-def _progress(args):
-    """Messages and counted bars on stderr (calibration/progress.py); None with --quiet."""
-    if getattr(args, "quiet", False):
-        return None
-    from calibration.progress import Progress
-
-    return Progress()
-
-
-# ------------------------------------------------------------------------------ synth
-def cmd_synth_in_service(args) -> int:
-    from calibration.truth.effects import parse_effect
-    from calibration.truth.in_service import InServiceSettings, synth_in_service
-    from calibration.truth.track import LineSpec
-
-    effect = parse_effect(args.effect, "in_service")
-    if args.journeys < 1:
-        raise InputError(f"--journeys must be >= 1, got {args.journeys}", key="--journeys")
-    if not 5.0 <= args.length_km <= 500.0:
-        raise InputError(f"--length-km must be within 5..500 km, got {args.length_km}", key="--length-km")
-    check_campaign_output(args.out, overwrite=args.force)
-    settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
-                                 carbody_sensors=args.carbody_sensors)
-    truth = synth_in_service(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
-                             overwrite=args.force, progress=_progress(args))
-    f = truth["frequencies_hz"]
-    print(f"wrote {args.out} ({args.journeys} journeys x {args.length_km:g} km) and {args.out}.truth.json; "
-          + ", ".join(f"{k} {v:.3f} Hz" for k, v in f.items()))
-    return EXIT_OK
-
-
-def cmd_synth_excitation(args) -> int:
-    from calibration.truth.effects import parse_effect
-    from calibration.truth.excitation import ExcitationSettings, synth_excitation
-
-    effect = parse_effect(args.effect, "stationary_excitation")
-    if args.runs < 1:
-        raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
-    if not 20.0 * args.runs <= args.duration <= 7200.0:
-        raise InputError(f"--duration must be within {20 * args.runs:g}..7200 s (at least 20 s per run), "
-                         f"got {args.duration:g}", key="--duration")
-    check_campaign_output(args.out, overwrite=args.force)
-    settings = ExcitationSettings(runs=args.runs, duration=args.duration)
-    truth = synth_excitation(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
-                             overwrite=args.force, progress=_progress(args))
-    elastic = [f"{k} {f:.2f} Hz" for k, f in truth["frequencies_hz"].items() if truth["mode_kinds"][k] == "elastic"]
-    print(f"wrote {args.out} ({args.runs} runs x {settings.run_duration:g} s, {len(truth['sensors'])} floor "
-          f"accelerometers and the exciter force at {settings.fs:g} Hz) and {args.out}.truth.json; "
-          f"{truth['modes_kept']['count']} modes kept; elastic modes in 3-25 Hz: {', '.join(elastic)}")
-    return EXIT_OK
-
-
-# --------------------------------------------------------------------------- identify
+# ------------------------------------------------------------------- model commands
 def cmd_identify(args) -> int:
-    from calibration.identification.fdd import FDDSettings
-    from calibration.identification.in_service import IdentifySettings, identify_in_service
-    from calibration.identification.plots import plot_identification, plot_spectra
-
-    campaign = _open_campaign(args)
+    campaign = campaign_of(args)
+    model = model_for_campaign(campaign)
     png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
-    second = png.with_name(png.stem + ("_mac.png" if campaign.meta.kind == "stationary_excitation" else "_spectra.png"))
+    second = png.with_name(png.stem + ("_mac.png" if model.name == "box" else "_spectra.png"))
     check_outputs([args.out, png, second], inputs=[args.campaign, _truth_path(args.campaign)])
-    if campaign.meta.kind == "stationary_excitation":
-        return _identify_excitation(campaign, args)
-    settings = IdentifySettings(fdd=FDDSettings(seed=args.seed))
-    result = identify_in_service(campaign, settings=settings, progress=_progress(args))
-    out = result.to_json()
-    plot_identification(result, png, truth=_truth_frequencies(args.campaign))
-    spectra = plot_spectra(result, second)
-    out["plot"] = str(png)
-    out["plot_spectra"] = None if spectra is None else str(spectra)
-    write_result(args.out, out, "identification")
-    modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
-    open_ = "".join(f"; {u.label} not determined" for u in result.undetermined)
-    print(f"identified {len(result.modes)} modes ({modes}){open_}; {len(result.rejected_peaks)} peaks rejected; "
-          f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote "
-          f"{_names(args.out, png, spectra)}")
+    print(model.identify(campaign, args, png, second))
     return EXIT_OK
-
-
-def _identify_excitation(campaign, args) -> int:
-    from calibration.identification.excitation import identify_excitation, write_identification
-
-    result = identify_excitation(campaign)
-    out = write_identification(result, args.out, args.plot)
-    png, mac_png = out["plot"], out["plot_mac"]
-    modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz ({100 * m.damping_ratio:.1f} %)" for m in result.modes)
-    print(f"identified {len(result.modes)} modes ({modes}); {len(result.rejected)} peaks rejected; "
-          f"{result.frf.n_averages} Welch segments over {result.records} records; wrote {_names(args.out, png, mac_png)}")
-    return EXIT_OK
-
-
-# ------------------------------------------------------------------------------ modes
-def _parse_params(items) -> dict[str, float]:
-    out = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        if not sep:
-            raise InputError(f"expected NAME=VALUE, got {item!r}", key="--param")
-        if name not in CAR_PARAMETER_SPECS:
-            raise InputError(f"unknown parameter {name!r}; known: {', '.join(CAR_PARAMETER_SPECS)}", key="--param")
-        try:
-            out[name] = float(value)
-        except ValueError:
-            raise InputError(f"value of {name} is not a number: {value!r}", key="--param") from None
-    return out
 
 
 def cmd_modes(args) -> int:
     """Eigen-analysis of a model: every mode with a unique ``label`` and its spec v1
     ``family`` (``bogie_bounce_in_phase`` and ``bogie_bounce_anti_phase`` are both of
     family ``bogie_bounce``)."""
-    from calibration.data.outputs import check_outputs, write_result
-
-    if args.model not in ("car2d", "box"):
-        raise InputError(f"unknown model {args.model!r}; have: car2d, box", key="--model")
+    model = model_named(args.model)
     if args.out:
         check_outputs([args.out])
-    if args.model == "box":
-        out = _box_modes(args)
-    else:
-        from calibration.models.car2d import build_car, damped_modes, undamped_modes
-        from calibration.models.vehicles import VEHICLES
-
-        p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
-        asm = build_car(p)
-        damped = {m.name: m for m in damped_modes(asm)}
-        modes = []
-        for m in undamped_modes(asm):  # both analyses name a mode by its shape alike
-            d = damped.get(m.name)
-            modes.append({"label": m.name, "family": m.label, "frequency_hz": m.frequency_hz,
-                          "damping_ratio": None if d is None else d.damping_ratio,
-                          "damped_frequency_hz": None if d is None else d.damped_frequency_hz})
-        out = {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(), "modes": modes}
+    out = model.modes(args)
     if args.out:
         write_result(args.out, out, "modes")
     wrote = f"; wrote {args.out}" if args.out else ""
@@ -252,234 +114,84 @@ def cmd_modes(args) -> int:
     return EXIT_OK
 
 
-def _box_modes(args) -> dict:
-    """``railcal modes --model box``: the box-type vehicle (default factor set) with
-    ``--param NAME=FACTOR`` stiffness factors."""
-    from calibration.models.box.shinkansen import calibrated_box_model
-    from calibration.models.vehicles import box_modes
-
-    factors = {}
-    for item in args.param or []:
-        name, sep, value = item.partition("=")
-        try:
-            factors[name] = float(value) if sep else None
-        except ValueError:
-            raise InputError(f"value of {name} is not a number: {value!r}", key="--param") from None
-        if factors[name] is None:
-            raise InputError(f"expected NAME=FACTOR, got {item!r}", key="--param")
-    if not args.max_hz > 0:
-        raise InputError(f"--max-hz must be positive, got {args.max_hz:g}", key="--max-hz")
-    try:
-        model, p = calibrated_box_model({"model": "box", "parameters": factors})
-    except InputError as e:  # it names the calibration file's key; here the factors come from --param
-        raise InputError(str(e).replace("key 'parameters': ", ""), key="--param") from None
-    modes = box_modes(model, p, max_hz=args.max_hz)
-    return {"model": "box", "parameters": p, "max_hz": args.max_hz,
-            "modes": [{"label": m.label, "family": m.family, "frequency_hz": m.frequency_hz,
-                       "damping_ratio": m.damping_ratio, "kind": m.kind} for m in modes]}
-
-
-# -------------------------------------------------------------------------- calibrate
 def cmd_calibrate(args) -> int:
     check_outputs([args.out], inputs=[args.campaign, args.targets, args.priors])
-    if args.model == "car2d" and args.method == "pso" and args.targets is not None and args.priors is None:
-        raise InputError("--method pso searches within a range for every parameter and there is no default "
-                         "for the 2D car (the seed's Table 7 gives no range for J_v and J_b): give the ranges "
-                         "with --priors P.toml ([NAME] nominal, low, high)", key="--priors")
-    from calibration.calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
-
+    model = model_named(args.model)
     if args.campaign is not None and args.priors is not None:
         raise InputError("a campaign brings its own [priors.NAME]; --priors goes with --targets", key="--priors")
-    if args.model == "box":
-        return _calibrate_box(args)
-    if args.model != "car2d":
-        raise InputError(f"unknown model {args.model!r}; have: car2d, box", key="--model")
-    if args.runs < 1:
-        raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
-    if (args.campaign is None) == (args.targets is None):
-        raise InputError("give either a CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
-    if args.campaign is not None:
-        result, ident = calibrate_campaign(_open_campaign(args), method=args.method, objective=args.objective,
-                                           runs=args.runs, seed=args.seed, refine_result=args.refine,
-                                           progress=_progress(args))
-        out = result.to_json()
-        out["identified_modes"] = [m.to_json() for m in ident.modes]
-        write_result(args.out, out, "calibration")
-        print(f"calibrated to {len(result.targets)} identified modes: max error {result.max_error_pct:.3g} %; "
-              f"{result.identifiability['summary']}; wrote {args.out}")
-        return EXIT_OK
-    targets = read_targets(args.targets)
-    search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
-    result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
-                           seed=args.seed, refine_result=args.refine)
-    write_result(args.out, result.to_json(), "calibration")
-    refined = ""
-    if result.refinement is not None:
-        refined = (" after CasADi refinement" if result.refinement["improved"]
-                   else " (refinement did not improve; global result kept)")
-    within = "" if args.priors else " within the seed's Table 7 ranges (intercity trailer car)"
-    print(f"{args.method} x {args.runs} runs{within}{refined}: max error {result.max_error_pct:.3g} %; "
-          f"{result.identifiability['summary']}; wrote {args.out}")
+    print(model.calibrate(args))
     return EXIT_OK
 
 
-def _calibrate_box(args) -> int:
-    from calibration.calibrate_box import calibrate_box_campaign
-    from calibration.optimisers.pso import PSOSettings
-
-    if args.method != "pso":
-        raise InputError("the box model is calibrated by particle swarm (the RTRI seed's method): --method pso",
-                         key="--method")
-    if (args.campaign is None) == (args.targets is None):
-        raise InputError("give either a stationary excitation CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
-    if args.particles < 2 or args.iterations < 1 or not args.stop_pct >= 0:
-        raise InputError("need --particles >= 2, --iterations >= 1 and --stop-pct >= 0", key="--particles")
-    settings = PSOSettings(particles=args.particles, iterations=args.iterations, target=args.stop_pct)
-    swarms = args.swarms if args.swarms is not None else CAMPAIGN_SWARMS if args.campaign is not None else TYPED_SWARMS
-    if swarms < 1 or args.particles // swarms < 2:
-        raise InputError(f"--swarms {swarms} with --particles {args.particles}: each swarm needs 2 or more particles",
-                         key="--swarms")
-    if args.campaign is not None:
-        if args.factors not in (None, "grouped"):
-            raise InputError(f"a campaign is calibrated over the grouped factor set (its priors name them), not "
-                             f"{args.factors!r}", key="--factors")
-        result, ident = calibrate_box_campaign(_open_campaign(args), settings=settings, seed=args.seed,
-                                               refine=args.refine, progress=_progress(args), swarms=swarms)
-        out = result.to_json(ident)
-    else:
-        result = _calibrate_box_targets(args, settings, swarms)
-        out = result.to_json()
-    write_result(args.out, out, "calibration")
-    pso = result.pso
-    runs = pso.get("swarms", ())
-    ends = ", ".join(f"{r['end_max_error_pct']:.3g} %" for r in runs)
-    split = f" in {len(runs)} swarms (each refined: {ends}; the best kept)" if runs else ""
-    print(f"pso {pso['particles']} x {pso['iterations']} iterations{split} over {len(pso['factors'])} of the "
-          f"{len(result.parameters)} {result.factor_set} factors ({pso['evaluations_per_s']:.0f} evaluations/s): "
-          f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
-          f"{result.max_error_pct:.3g} % over {len(result.fit)} modes, MAC >= {min(r['mac'] for r in result.fit):.3f}"
-          f"{_unsound(result.fit)}; {result.identifiability['summary']}; wrote {args.out}")
-    return EXIT_OK
-
-
-def _unsound(fit) -> str:
-    """The summary's note of pairings that do not count as they are (under the MAC floor or
-    sharing a partner; :meth:`BoxFit.sound`), with the MAC to six places: a MAC of 0.799999
-    prints as 0.800 but is under a floor of 0.8."""
-    bad = [r for r in fit if not r["sound"]]
-    return "".join(f", {r['label']} unsound (MAC {r['mac']:.6f})" for r in bad)
-
-
-def _calibrate_box_targets(args, settings, swarms: int):
-    """Targets given by mode type and frequency: each paired by MAC with the type's floor
-    pattern at the assumed accelerometer grid of the shaker test."""
-    from calibration.calibrate import read_priors, read_targets
-    from calibration.calibrate_box import box_search, calibrate_box
-    from calibration.data.campaign import Prior
-    from calibration.models.box import factor_set
-    from calibration.models.box.mode_types import MODE_TYPES, typed_targets
-    from calibration.models.box.shinkansen import Geometry
-    from calibration.models.box.rig import EXCITER, SENSOR_GRID
-
-    try:
-        factors = factor_set(args.factors or "credible")
-    except ValueError as e:
-        raise InputError(str(e), key="--factors") from None
-    targets = read_targets(args.targets, labels=tuple(MODE_TYPES), model="the box model (mode types)")
-    given = read_priors(args.priors, searchable=factors.names) if args.priors else ()
-    search = box_search({q.name: Prior(q.mean, q.low, q.high) for q in given}, factors=factors)
-    g = Geometry()
-    typed = typed_targets(targets, SENSOR_GRID, g.length, g.width)
-    return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
-                         factors=factors, progress=_progress(args),
-                         min_mac=TYPED_MIN_MAC, log_factors=True, refine_rounds=TYPED_REFINE_ROUNDS,
-                         polish_steps=TYPED_POLISH_STEPS if args.refine else 0, swarms=swarms,
-                         exciter=EXCITER)
-
-
-# --------------------------------------------------------------------------- validate
-def _read_calibration(path) -> dict:
-    """A calibration file (railcal calibrate --out) with a parameters table, or exit 2."""
-    path = Path(path)
-    calibration = read_result(path, ("calibration", "diagnosis"))
-    if "parameters" not in calibration:
-        raise InputError("not a calibration result: no 'parameters'", path=path, key="parameters")
-    params = calibration["parameters"]
-    if not isinstance(params, dict):
-        raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", path=path,
-                         key="parameters")
-    return calibration
+def _model_for(campaign, calibration: dict, path):
+    """The calibration's model, which must be the one the campaign's kind calibrates."""
+    model = model_of_calibration(calibration, path)
+    if model.campaign_kind != campaign.meta.kind:
+        expected = model_for_campaign(campaign)
+        raise InputError(f"a {campaign.meta.kind} campaign goes with a {expected.name} calibration, not "
+                         f"{model.name} (model = {expected.name})", path=Path(path), key="model")
+    return model
 
 
 def cmd_validate(args) -> int:
-    from calibration.models.parameters import CarParameters
-    from calibration.validation.in_service import validate
-    from calibration.validation.plots import plot_validation
-
     path = Path(args.calibration)
     check_outputs([args.out, Path(args.out).with_suffix(".png")], inputs=[args.campaign, path])
-    calibration = _read_calibration(path)
-    params = calibration["parameters"]
-    campaign = _open_campaign(args)
-    if campaign.meta.kind == "stationary_excitation":
-        return _validate_excitation(campaign, calibration, args)
-    try:
-        p = CarParameters.from_mapping(params)
-    except ParameterError as e:
-        raise InputError(str(e), path=path, key="parameters") from None
-    result = validate(campaign, p, progress=_progress(args))
-    png = plot_validation(result, Path(args.out).with_suffix(".png"))
-    out = result.to_json()
-    out["plot"] = str(png)
-    write_result(args.out, out, "validation")
-    summary = "; ".join(f"{k}: NRMSE {v['nrmse']:.3f}, PSD {v['psd_log_error_db']:.2f} dB"
-                        for k, v in out["channels"].items())
-    print(f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-{result.band_m[1]:g} m): "
-          f"{summary}; wrote {_names(args.out, png)}")
+    calibration = read_calibration(path)
+    campaign = campaign_of(args)
+    model = _model_for(campaign, calibration, path)
+    with about_calibration(path):
+        print(model.validate(campaign, calibration, args))
     return EXIT_OK
 
 
 def cmd_diagnose(args) -> int:
-    from calibration.diagnosis.diagnose import diagnose
-    from calibration.diagnosis.plots import plot_diagnosis
-
-    campaign = _open_campaign(args)
+    campaign = campaign_of(args)
+    model = model_for_campaign(campaign)
     out_path = Path(args.out)
     stem = out_path.with_suffix("")
-    ends = ("_frf", "_mac") if campaign.meta.kind == "stationary_excitation" else ("_residual_psd", "_speed_map")
-    check_outputs([out_path, *(stem.with_name(stem.name + e + ".png") for e in ends)], inputs=[args.campaign])
-    if campaign.meta.kind == "stationary_excitation":
-        from calibration.diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
-
-        result = diagnose_stationary(campaign, progress=_progress(args))
-        result["plots"] = [str(p) for p in plot_stationary_diagnosis(result, out_path.with_suffix(""))]
-    else:
-        result = diagnose(campaign, progress=_progress(args))
-        result["plots"] = [str(p) for p in plot_diagnosis(result, out_path.with_suffix(""))]
-    result.pop("_plot")
-    write_result(out_path, result, "diagnosis")
+    figures = [stem.with_name(stem.name + suffix + ".png") for suffix in model.diagnosis_figures]
+    check_outputs([out_path, *figures], inputs=[args.campaign])
+    diagnosis = model.diagnose(campaign, progress_for(args))
+    plots = [str(p) for p in diagnosis.plot(stem)]
+    write_result(out_path, {**diagnosis.to_json(), "plots": plots}, "diagnosis")
     if not args.quiet:  # the evidence in full; the summary line stays one line
-        for line in result["evidence"]["summary"]:
+        for line in diagnosis.summary:
             print(f"  {line}", file=sys.stderr)
-    print(f"cause: {result['cause']}; wrote {_names(out_path, *result['plots'])}")
+    print(f"cause: {diagnosis.cause}; wrote {names(out_path, *plots)}")
     return EXIT_OK
 
 
-def _validate_excitation(campaign, calibration: dict, args) -> int:
-    from calibration.validation.excitation import compare_frf
-    from calibration.validation.plots import plot_frf_comparison
+def cmd_export_fmu(args) -> int:
+    from fmu_src.build import BuildError
+    from fmu_src.export import export_fmu
 
-    if calibration.get("model") != "box":
-        raise InputError("a stationary excitation test validates a box calibration (model = box)",
-                         path=Path(args.calibration), key="model")
-    result = compare_frf(campaign, calibration)
-    png = plot_frf_comparison(result, Path(args.out).with_suffix(".png"))
-    out = result.to_json()
-    out["plot"] = str(png)
-    write_result(args.out, out, "validation")
-    print(f"FRF from the exciter to {len(result.sensors)} accelerometers over {result.band[0]:g}-{result.band[1]:g} Hz: "
-          f"FRAC median {out['frac_median']:.3f}, min {out['frac_min']:.3f}; log-magnitude error up to "
-          f"{result.log_error_db.max():.2f} dB rms; wrote {_names(args.out, png)}")
+    check_outputs([args.out], inputs=[args.calibration, args.track, args.campaign])
+    calibration = read_calibration(args.calibration)
+    model = model_of_calibration(calibration, args.calibration)
+    campaign = campaign_of(args) if args.campaign else None
+    try:
+        with about_calibration(args.calibration):
+            built = export_fmu(calibration, args.fmi_version, Path(args.out), spec_for=model.fmu_spec,
+                               track=args.track, campaign=campaign, cutoff_hz=args.cutoff_hz)
+    except ParameterError as e:
+        raise InputError(str(e), path=Path(args.calibration), key="parameters") from None
+    except BuildError as e:
+        print(f"railcal: cannot build the FMU: {e}", file=sys.stderr)
+        return EXIT_INTERNAL
+    print(f"FMI {built.fmi_version} co-simulation FMU with binaries for {', '.join(built.platforms)}"
+          f"{' and a stand-alone track' if args.track else ''}: wrote {built.path}")
+    return EXIT_OK
+
+
+def cmd_crosscheck(args) -> int:
+    calibration = read_calibration(args.calibration)
+    model = model_of_calibration(calibration, args.calibration)
+    png = Path(args.out).with_suffix(".png") if model.crosscheck_figure else None
+    check_outputs([args.out, png], inputs=[args.calibration, args.track])
+    if not (args.speed > 0 and args.duration > 0):
+        raise InputError("--speed and --duration must be positive", key="--speed")
+    with about_calibration(args.calibration):
+        print(model.crosscheck(calibration, args, png))
     return EXIT_OK
 
 
@@ -494,94 +206,8 @@ def cmd_demo(args) -> int:
     # the demo replaces its own campaigns there: refuse before any work if one is not railcal's
     for name in ("campaign", "shaker"):
         check_campaign_output(out / name, overwrite=True)
-    report = run_demo(Path(args.out), progress=_progress(args), full=args.full)
+    report = run_demo(Path(args.out), progress=progress_for(args), full=args.full)
     print(f"demo finished: report {report}; wrote its results, figures and FMUs into {args.out}")
-    return EXIT_OK
-
-
-# ------------------------------------------------------------------------------ FMUs
-def cmd_export_fmu(args) -> int:
-    from fmu_src.build import BuildError
-    from fmu_src.export import export_fmu
-
-    check_outputs([args.out], inputs=[args.calibration, args.track, args.campaign])
-    calibration = _read_calibration(args.calibration)
-    campaign = _open_campaign(args) if args.campaign else None
-    try:
-        built = export_fmu(calibration, args.fmi_version, Path(args.out), track=args.track, campaign=campaign,
-                           cutoff_hz=args.cutoff_hz)
-    except ParameterError as e:
-        raise InputError(str(e), path=Path(args.calibration), key="parameters") from None
-    except BuildError as e:
-        print(f"railcal: cannot build the FMU: {e}", file=sys.stderr)
-        return EXIT_INTERNAL
-    print(f"FMI {built.fmi_version} co-simulation FMU with binaries for {', '.join(built.platforms)}"
-          f"{' and a stand-alone track' if args.track else ''}: wrote {built.path}")
-    return EXIT_OK
-
-
-def cmd_crosscheck(args) -> int:
-    from railcal.crosscheck import crosscheck_car
-
-    from calibration.models.parameters import CarParameters
-
-    calibration = _read_calibration(args.calibration)
-    model = calibration.get("model", "car2d")
-    if model not in ("car2d", "box"):
-        raise InputError(f"crosscheck covers car2d and box calibrations, not {model!r}", path=Path(args.calibration),
-                         key="model")
-    png = Path(args.out).with_suffix(".png") if model == "car2d" else None  # the box cross-check draws no figure
-    check_outputs([args.out, png], inputs=[args.calibration, args.track])
-    if not (args.speed > 0 and args.duration > 0):
-        raise InputError("--speed and --duration must be positive", key="--speed")
-    if model == "box":
-        return _crosscheck_box(calibration, args)
-    try:
-        p = CarParameters.from_mapping(calibration["parameters"])
-    except ParameterError as e:
-        raise InputError(str(e), path=Path(args.calibration), key="parameters") from None
-    distance, level = _track_for_crosscheck(args)
-    try:
-        report = crosscheck_car(p, distance, level, speed=args.speed, duration=args.duration,
-                                with_fmu=not args.no_fmu, plot=png)
-    except ValueError as e:
-        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
-    write_result(args.out, report, "crosscheck")
-    e, t = report["eigen"], report["time"]
-    print(f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped eigenvalues "
-          f"{e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst NRMSE "
-          f"{t['worst_nrmse']:.1e} (exudyn, railcal{'' if args.no_fmu else ', FMU'}); verdict {report['verdict']} "
-          f"(wall time {report['wall_time_s']:.1f} s, not judged); wrote {_names(args.out, report.get('plot'))}")
-    return EXIT_OK
-
-
-def _track_for_crosscheck(args):
-    from calibration.data.campaign import read_track_file
-
-    if args.track:
-        rec = read_track_file(Path(args.track))
-        return rec.distance, rec.level
-    from fmu_src.reference import smooth_profile  # a synthetic track: German low-disturbance spectrum, 3-70 m
-
-    s, z, _ = smooth_profile(args.speed * args.duration + 60.0, seed=3)
-    return s, z
-
-
-def _crosscheck_box(calibration: dict, args) -> int:
-    from railcal.crosscheck import crosscheck_box
-
-    distance, level = _track_for_crosscheck(args)
-    try:
-        report = crosscheck_box(calibration, distance, level, speed=args.speed, duration=args.duration,
-                                with_fmu=not args.no_fmu)
-    except ValueError as e:
-        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
-    write_result(args.out, report, "crosscheck")
-    e, t = report["eigen"], report["time"]
-    print(f"exudyn vs railcal (box): frequencies below 20 Hz {e['max_relative_error_vs_reduced']:.1e} (reduced), "
-          f"{e['max_relative_error_vs_full']:.1e} (full model); {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst "
-          f"floor NRMSE {t['worst_nrmse']:.1e}; verdict {report['verdict']} (wall time "
-          f"{report['wall_time_s']:.1f} s, not judged); wrote {args.out}")
     return EXIT_OK
 
 
@@ -628,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_identify)
 
     s = sub.add_parser("modes", help="eigen-analysis of a model")
-    s.add_argument("--model", choices=("car2d", "box"), default="car2d",
+    s.add_argument("--model", choices=tuple(MODELS), default="car2d",
                    help="model to analyse: the 2D car or the box-type vehicle (Shinkansen-type carbody)")
     s.add_argument("--vehicle", choices=("intercity", "manchester"), default="intercity",
                    help="base parameter set: the seed's intercity trailer or the Manchester benchmark coach")
@@ -649,7 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --targets: TOML with [NAME] nominal, low, high (default: with --model car2d --method "
                         "ce the in-service seed's Table 7 ranges of the intercity trailer car; --method pso needs "
                         "this file; with --model box each factor's own range); a campaign brings its own priors")
-    s.add_argument("--model", choices=("car2d", "box"), default="car2d", help="model to calibrate")
+    s.add_argument("--model", choices=tuple(MODELS), default="car2d", help="model to calibrate")
     s.add_argument("--method", choices=("ce", "pso"), default="ce",
                    help="global search: Cross-Entropy or particle swarm")
     s.add_argument("--objective", choices=("sse", "max_rel"), default="sse",

@@ -28,12 +28,10 @@ from calibration.calibrate import calibrate_car, mode_uncertainties, search_from
 from calibration.calibrate_box import calibrate_box_campaign
 from calibration.data.campaign import open_campaign
 from calibration.data.outputs import write_atomic, write_json_atomic, write_result
-from calibration.diagnosis.stationary import StationarySettings
+from calibration.diagnosis.excitation import ExcitationDiagnosisSettings
 from calibration.validation.excitation import compare_frf
-from calibration.identification.excitation import write_identification
 from calibration.signals.modal import mac_matrix
 from calibration.identification.in_service import RIGID_LABELS, identify_in_service, prior_parameters
-from calibration.identification.plots import plot_identification, plot_spectra
 from calibration.optimisers.pso import PSOSettings
 from calibration.progress import counter
 from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
@@ -42,7 +40,6 @@ from calibration.truth.excitation import ExcitationSettings, synth_excitation
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
 from calibration.validation.in_service import validate
-from calibration.validation.plots import plot_frf_comparison, plot_validation
 
 DEMO_SEED = 7
 
@@ -60,7 +57,7 @@ class DemoSettings:
     box_swarms: int
     box_done_pct: float = CAMPAIGN_DONE_PCT
     box_refine_tol_pct: float = 1e-4  # the CasADi refinement stops here [%]
-    stationary: StationarySettings = field(default_factory=StationarySettings)
+    stationary: ExcitationDiagnosisSettings = field(default_factory=ExcitationDiagnosisSettings)
     box_order_change: int = 0  # added to every panel order of the shaker test's box model (negative: coarse)
 
     def __post_init__(self):
@@ -119,9 +116,8 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     campaign = open_campaign(campaign_dir)
     result = identify_in_service(campaign, progress=progress)
     ident = result.to_json()
-    png = plot_identification(result, out / "identification.png", truth=truth["frequencies_hz"])
+    png, spectra = result.plot(out / "identification.png", out / "spectra.png", truth=truth["frequencies_hz"])
     ident["plot"] = str(png)
-    spectra = plot_spectra(result, out / "spectra.png")
     ident["plot_spectra"] = None if spectra is None else str(spectra)
     write_result(out / "identification.json", ident, "identification")
     say("3/11 calibrating the 2D car to the identified modes (Cross-Entropy, CasADi refinement)")
@@ -132,7 +128,7 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     write_result(out / "calibration.json", calibration.to_json(), "calibration")
     say("4/11 validating over the track recording")
     validation = validate(campaign, calibration.parameters)
-    plot_validation(validation, out / "validation.png")
+    validation.plot(out / "validation.png")
     write_result(out / "validation.json", validation.to_json(), "validation")
     say("5/11 diagnosing what the model gets wrong (residuals, hypotheses, held-out gain)")
     diagnosis = _diagnose(out, campaign, truth, progress)
@@ -202,14 +198,12 @@ def _checks_report(checks: list[tuple[str, bool]]) -> str:
 def _diagnose(out: Path, campaign, truth: dict, progress) -> dict:
     import time
 
-    from calibration.diagnosis.diagnose import diagnose
-    from calibration.diagnosis.plots import plot_diagnosis
+    from calibration.diagnosis.in_service import diagnose_in_service
 
     t0 = time.perf_counter()
-    result = diagnose(campaign, progress=progress)
-    result["wall_time_s"] = time.perf_counter() - t0
-    result["plots"] = [p.name for p in plot_diagnosis(result, out / "diagnosis")]
-    result.pop("_plot")
+    diag = diagnose_in_service(campaign, progress=progress)
+    wall_time_s = time.perf_counter() - t0
+    result = {**diag.to_json(), "wall_time_s": wall_time_s, "plots": [p.name for p in diag.plot(out / "diagnosis")]}
     result["truth_effect"] = truth["effect"]
     write_result(out / "diagnosis.json", result, "diagnosis")
     return result
@@ -244,12 +238,14 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
                                                 swarms=demo.box_swarms, done_pct=demo.box_done_pct,
                                                 refine_tol_pct=demo.box_refine_tol_pct,
                                                 order_change=demo.box_order_change)
-    write_identification(ident, out / "shaker_identification.json")
+    png, mac_png = ident.plot(out / "shaker_identification.png")
+    write_result(out / "shaker_identification.json", {**ident.to_json(), "plot": str(png), "plot_mac": str(mac_png)},
+                 "identification")
     cal_json = calibration.to_json(ident)
     write_result(out / "shaker_calibration.json", cal_json, "calibration")
     say("8/11 comparing measured and model FRFs; diagnosing the shaker test (box baseline, extensions, held-out run)")
     frf = compare_frf(campaign, cal_json, ident)
-    plot_frf_comparison(frf, out / "shaker_frf.png")
+    frf.plot(out / "shaker_frf.png")
     write_json_atomic(out / "shaker_frf.json", frf.to_json())
     diagnosis = _diagnose_shaker(out, campaign, truth, progress, demo.stationary, model)
     labels = list(truth["frequencies_hz"])
@@ -264,13 +260,13 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
             "pairs": rows, "diagnosis": diagnosis, "n_dof": model.n_dof}
 
 
-def _diagnose_shaker(out: Path, campaign, truth: dict, progress, settings: StationarySettings, model) -> dict:
-    from calibration.diagnosis.stationary import diagnose_stationary, plot_stationary_diagnosis
+def _diagnose_shaker(out: Path, campaign, truth: dict, progress, settings: ExcitationDiagnosisSettings,
+                     model) -> dict:
+    from calibration.diagnosis.excitation import diagnose_excitation
 
-    result = diagnose_stationary(campaign, progress=progress, settings=settings, model=model)
-    result["wall_time_s"] = result["wall_s"]
-    result["plots"] = [p.name for p in plot_stationary_diagnosis(result, out / "shaker_diagnosis")]
-    result.pop("_plot")
+    diag = diagnose_excitation(campaign, progress=progress, settings=settings, model=model)
+    plots = [p.name for p in diag.plot(out / "shaker_diagnosis")]
+    result = {**diag.to_json(), "wall_time_s": diag.wall_s, "plots": plots}
     result["truth_effect"] = truth["effect"]
     write_result(out / "shaker_diagnosis.json", result, "diagnosis")
     return result
@@ -283,11 +279,13 @@ def _fmus(out: Path, campaign, car_parameters, box_calibration: dict) -> dict:
     from fmu_src.export import export_fmu
     from fmu_src.reference import car_reference, nrmse, spline_profile
 
+    from railcal.registry import MODELS
+
     track = campaign.tracks()[0]
     speed, T, h = 40.0, 10.0, 1e-3
     start = float(track.distance[0]) + 20.0
     car = export_fmu({"model": "car2d", "parameters": car_parameters.as_dict()}, 2, out / "railcal_car.fmu",
-                     track=track.path)
+                     spec_for=MODELS["car2d"].fmu_spec, track=track.path)
     outputs = [v for v in ("carbody_acc_z", "bogie1_acc_z", "bogie1_pitch_rate", "contact_force_1")]
     res = fmpy.simulate_fmu(str(car.path), stop_time=T, output_interval=h, step_size=h,
                             start_values={"speed": speed, "track_start": start}, output=outputs)
@@ -295,7 +293,7 @@ def _fmus(out: Path, campaign, car_parameters, box_calibration: dict) -> dict:
 
     ref = car_reference(car2d_spec(car_parameters.as_dict()), car_parameters,
                         spline_profile(track.distance, track.level), speed, res["time"], start=start)
-    box = export_fmu(box_calibration, 2, out / "railcal_box.fmu", track=track.path)
+    box = export_fmu(box_calibration, 2, out / "railcal_box.fmu", spec_for=MODELS["box"].fmu_spec, track=track.path)
     t = np.arange(0.0, 2.0 + h / 2, h)
     force = np.zeros(t.size, dtype=[("time", float), ("exciter_force", float)])
     force["time"], force["exciter_force"] = t, 500.0 * np.sin(2 * np.pi * 10.0 * t)

@@ -20,7 +20,7 @@ import numpy as np
 
 from calibration.models.box.rig import EXCITER, SENSOR_GRID, point_record
 from calibration.models.vehicles import INTERCITY_TRAILER
-from fmu_src.export import export_fmu
+from fmu_src.export import box_fmu_spec, car2d_fmu_spec, export_fmu
 from fmu_src.reference import smooth_profile
 
 
@@ -40,9 +40,9 @@ def main() -> int:
         s, z, _ = smooth_profile(5000.0, seed=1)
         track = Path(tmp) / "track.csv"
         np.savetxt(track, np.column_stack([s, z]), delimiter=",", header="distance,level", comments="", fmt="%.10g")
-        for name, cal in (("car", car), ("box", box)):
+        for name, cal, spec_for in (("car", car, car2d_fmu_spec), ("box", box, box_fmu_spec)):
             for v in (2, 3):
-                built = export_fmu(cal, v, out / f"railcal_{name}_fmi{v}.fmu", track=track)
+                built = export_fmu(cal, v, out / f"railcal_{name}_fmi{v}.fmu", spec_for=spec_for, track=track)
                 print(f"{built.path}: FMI {v}, binaries {', '.join(built.platforms)}")
     return 0
 

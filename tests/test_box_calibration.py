@@ -495,10 +495,10 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
 
 def test_the_summary_names_a_pairing_a_hair_under_the_mac_floor():
     """A MAC of 0.7999991 rounds to 0.800 but is under a floor of 0.8: the summary says so."""
-    from railcal.cli import _unsound
+    from railcal.box import unsound_note
     fit = [{"label": "torsion_1", "mac": 0.884, "sound": True}, {"label": "breathing", "mac": 0.7999991, "sound": False}]
-    assert _unsound(fit) == ", breathing unsound (MAC 0.799999)"
-    assert _unsound(fit[:1]) == ""
+    assert unsound_note(fit) == ", breathing unsound (MAC 0.799999)"
+    assert unsound_note(fit[:1]) == ""
 
 
 @pytest.mark.slow

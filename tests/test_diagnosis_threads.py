@@ -4,7 +4,7 @@ otherwise (calibration/diagnosis/threads.py) is tested below, without the pin.""
 import numpy as np
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from calibration.diagnosis.diagnose import diagnose
+from calibration.diagnosis.in_service import diagnose_in_service
 from calibration.diagnosis.excitation import diagnose_excitation
 from calibration.diagnosis.threads import one_blas_thread
 
@@ -27,7 +27,7 @@ def test_a_function_pinned_to_one_blas_thread_runs_on_one_and_leaves_the_setting
 
 
 def test_both_diagnoses_are_pinned_to_one_blas_thread():
-    for entry in (diagnose, diagnose_excitation):  # for speed: the answers no longer depend on it (below)
+    for entry in (diagnose_in_service, diagnose_excitation):  # for speed: the answers no longer depend on it (below)
         assert entry.__wrapped__.__name__ == entry.__name__  # the one_blas_thread wrapper
         assert entry.__code__ is one_blas_thread(lambda: None).__code__
 

@@ -370,12 +370,12 @@ def test_export_with_a_campaign_adds_its_accelerometers_as_outputs_at_their_posi
     """The campaign's bogie accelerometer sits 0.5 m ahead of the bogie centre: the FMU
     gives its acceleration (centre acceleration minus 0.5 m x pitch acceleration)."""
     from calibration.data.campaign import open_campaign
-    from fmu_src.export import car_sensors, export_fmu
+    from fmu_src.export import car2d_fmu_spec, car_sensors, export_fmu
     from fmu_src.variables import car2d_spec
 
     campaign = open_campaign(tiny_campaign)
     built = export_fmu({"model": "car2d", "parameters": CAR.as_dict()}, 2, tmp_path / "car.fmu",
-                       track=car_track[0], campaign=campaign, platforms=("linux64",))
+                       spec_for=car2d_fmu_spec, track=car_track[0], campaign=campaign, platforms=("linux64",))
     sensors = car_sensors(campaign, CAR)
     assert sensors == (("bogie1_acc_z", "bogie1", pytest.approx(8.5 - CAR.L_v)),)
     res = fmpy.simulate_fmu(str(built.path), stop_time=2.0, output_interval=1e-3, step_size=1e-3,

@@ -4,7 +4,7 @@ import io
 
 import numpy as np
 
-from railcal.cli import _progress
+from railcal.common import progress_for
 from calibration.optimisers.base import SearchParameter
 from calibration.optimisers.pso import PSOSettings, particle_swarm
 from calibration.progress import Progress, counter
@@ -35,9 +35,9 @@ def test_messages_go_above_the_bar_and_quiet_turns_everything_off():
     class Args:
         quiet = True
 
-    assert _progress(Args()) is None
+    assert progress_for(Args()) is None
     Args.quiet = False
-    assert isinstance(_progress(Args()), Progress)
+    assert isinstance(progress_for(Args()), Progress)
 
 
 def test_the_swarm_reports_every_iteration_and_its_path_does_not_depend_on_being_watched():

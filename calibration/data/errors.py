@@ -45,7 +45,13 @@ class InputError(ValueError):
         if key is not None:
             where.append(f"key '{excerpt(key)}'")
         super().__init__(f"{': '.join([', '.join(where), message]) if where else message}")
-        self.path, self.line, self.column, self.key = path, line, column, key
+        self.message, self.path, self.line, self.column, self.key = message, path, line, column, key
+
+    def located(self, path) -> "InputError":
+        """The same error, naming ``path`` as the file it is about (when it names none yet)."""
+        if self.path is not None:
+            return self
+        return type(self)(self.message, path=path, line=self.line, column=self.column, key=self.key)
 
 
 class CampaignError(InputError):

@@ -75,6 +75,20 @@ class ShakerIdentification:
     records: int
     settings: ShakerSettings = field(repr=False, default_factory=ShakerSettings)
 
+    def plot(self, path, mac=None):
+        """The stabilisation diagram at ``path`` and the modes' auto-MAC at ``mac`` (default:
+        beside it, ``_mac.png``). Returns both paths."""
+        from pathlib import Path
+
+        from .plots import plot_mac, plot_stabilisation
+
+        path = Path(path)
+        mac = path.with_name(path.stem + "_mac.png") if mac is None else Path(mac)
+        plot_stabilisation(self.stabilisation, self.frf.frequency, self.frf.H, path, modes=list(self.modes))
+        labels = [f"{m.label} {m.frequency_hz:.2f}" for m in self.modes]
+        plot_mac(self.auto_mac(), labels, labels, mac)
+        return path, mac
+
     def auto_mac(self) -> np.ndarray:
         if not self.modes:
             return np.zeros((0, 0))
@@ -157,22 +171,3 @@ def identify_excitation(campaign: Campaign, settings: ShakerSettings = ShakerSet
             rejected.append({"frequency_hz": float(p.frequency_hz),
                              "reason": "peak in the FRF sum with no stable pole (not a clear mode)"})
     return ShakerIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings)
-
-
-def write_identification(result: ShakerIdentification, out, plot=None) -> dict:
-    """``out`` (JSON): the identification with its figures, the stabilisation diagram at
-    ``plot`` (default: beside ``out``) and the auto-MAC beside it; returns the JSON."""
-    from pathlib import Path
-
-    from ..data.outputs import write_json_atomic
-    from .plots import plot_mac, plot_stabilisation
-
-    data = result.to_json()
-    png = Path(plot) if plot else Path(out).with_suffix(".png")
-    plot_stabilisation(result.stabilisation, result.frf.frequency, result.frf.H, png, modes=list(result.modes))
-    mac_png = png.with_name(png.stem + "_mac.png")
-    labels = [f"{m.label} {m.frequency_hz:.2f}" for m in result.modes]
-    plot_mac(result.auto_mac(), labels, labels, mac_png)
-    data["plot"], data["plot_mac"] = str(png), str(mac_png)
-    write_json_atomic(out, data)
-    return data

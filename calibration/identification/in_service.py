@@ -139,6 +139,18 @@ class InServiceIdentification:
                 return m
         raise KeyError(label)
 
+    def plot(self, path, spectra=None, *, truth: dict | None = None):
+        """The identification figure at ``path`` (dotted lines at ``truth`` frequencies by
+        label, when given) and the channels' spectra at ``spectra`` (default: beside it,
+        ``_spectra.png``). Returns both paths (the second None when there is nothing to draw)."""
+        from pathlib import Path
+
+        from .plots import plot_identification, plot_spectra
+
+        path = Path(path)
+        spectra = path.with_name(path.stem + "_spectra.png") if spectra is None else spectra
+        return plot_identification(self, path, truth=truth), plot_spectra(self, spectra)
+
     def to_json(self) -> dict:
         segs = self.fdd.outcomes
         return {

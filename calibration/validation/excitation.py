@@ -36,6 +36,12 @@ class FRFComparison:
     log_error_db: np.ndarray  # (n_s,) rms of 20 log10 |H_model / H_meas| over the band
     band: tuple[float, float]
 
+    def plot(self, path, channels: int = 9):
+        """|H| measured and model for up to ``channels`` accelerometers at ``path``."""
+        from .plots import plot_frf_comparison
+
+        return plot_frf_comparison(self, path, channels)
+
     def to_json(self) -> dict:
         return {"kind": "stationary_excitation", "band_hz": list(self.band),
                 "channels": {s: {"frac": float(f), "log_error_db": float(e)}

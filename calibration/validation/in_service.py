@@ -90,6 +90,12 @@ class ValidationResult:
                          "measured_rms": float(np.median([c.measured_rms for c in rows])), "runs": len(rows)}
         return out
 
+    def plot(self, path):
+        """Measured against simulated responses and their PSDs, per channel, at ``path``."""
+        from .plots import plot_validation
+
+        return plot_validation(self, path)
+
     def to_json(self) -> dict:
         return {"track": self.track, "band_m": list(self.band_m), "channels": self.summary(),
                 "skipped": [{"run": r, "channel": c, "reason": why} for r, c, why in self.skipped],

@@ -1,0 +1,137 @@
+"""The 2D car (in-service seed) in the commands: what `identify`, `modes`, `calibrate`,
+`validate`, `crosscheck` and `export-fmu` do for it. Each function writes the command's
+files and returns its one-line summary; the registry (:mod:`railcal.registry`) picks it."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from calibration.data.errors import InputError
+from calibration.data.outputs import write_result
+from calibration.models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
+
+from .common import campaign_of, names, progress_for, track_for_crosscheck
+
+
+def parameters(calibration: dict, path) -> CarParameters:
+    """The car's parameters of a calibration file, or exit 2 naming the file."""
+    try:
+        return CarParameters.from_mapping(calibration["parameters"])
+    except ParameterError as e:
+        raise InputError(str(e), path=Path(path), key="parameters") from None
+
+
+def identify(campaign, args, png: Path, second: Path) -> str:
+    from calibration.identification.fdd import FDDSettings
+    from calibration.identification.in_service import IdentifySettings, identify_in_service
+
+    settings = IdentifySettings(fdd=FDDSettings(seed=args.seed))
+    result = identify_in_service(campaign, settings=settings, progress=progress_for(args))
+    out = result.to_json()
+    png, spectra = result.plot(png, second)
+    out["plot"] = str(png)
+    out["plot_spectra"] = None if spectra is None else str(spectra)
+    write_result(args.out, out, "identification")
+    modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz" for m in result.modes)
+    open_ = "".join(f"; {u.label} not determined" for u in result.undetermined)
+    return (f"identified {len(result.modes)} modes ({modes}){open_}; {len(result.rejected_peaks)} peaks rejected; "
+            f"{out['data']['gaps']} gaps in {len(result.runs)} runs reported; wrote {names(args.out, png, spectra)}")
+
+
+def _parse_params(items) -> dict[str, float]:
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise InputError(f"expected NAME=VALUE, got {item!r}", key="--param")
+        if name not in CAR_PARAMETER_SPECS:
+            raise InputError(f"unknown parameter {name!r}; known: {', '.join(CAR_PARAMETER_SPECS)}", key="--param")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise InputError(f"value of {name} is not a number: {value!r}", key="--param") from None
+    return out
+
+
+def modes(args) -> dict:
+    """The --vehicle car with ``--param NAME=VALUE`` changes: undamped modes with the damped
+    ones' ratios and frequencies beside them."""
+    from calibration.models.car2d import build_car, damped_modes, undamped_modes
+    from calibration.models.vehicles import VEHICLES
+
+    p = VEHICLES[args.vehicle].replace(**_parse_params(args.param))
+    asm = build_car(p)
+    damped = {m.name: m for m in damped_modes(asm)}
+    rows = []
+    for m in undamped_modes(asm):  # both analyses name a mode by its shape alike
+        d = damped.get(m.name)
+        rows.append({"label": m.name, "family": m.label, "frequency_hz": m.frequency_hz,
+                     "damping_ratio": None if d is None else d.damping_ratio,
+                     "damped_frequency_hz": None if d is None else d.damped_frequency_hz})
+    return {"model": "car2d", "vehicle": args.vehicle, "parameters": p.as_dict(), "modes": rows}
+
+
+def calibrate(args) -> str:
+    from calibration.calibrate import DEFAULT_SEARCH, calibrate_campaign, calibrate_car, read_priors, read_targets
+
+    if args.method == "pso" and args.targets is not None and args.priors is None:
+        raise InputError("--method pso searches within a range for every parameter and there is no default "
+                         "for the 2D car (the seed's Table 7 gives no range for J_v and J_b): give the ranges "
+                         "with --priors P.toml ([NAME] nominal, low, high)", key="--priors")
+    if args.runs < 1:
+        raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
+    if (args.campaign is None) == (args.targets is None):
+        raise InputError("give either a CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
+    if args.campaign is not None:
+        result, ident = calibrate_campaign(campaign_of(args), method=args.method, objective=args.objective,
+                                           runs=args.runs, seed=args.seed, refine_result=args.refine,
+                                           progress=progress_for(args))
+        out = result.to_json()
+        out["identified_modes"] = [m.to_json() for m in ident.modes]
+        write_result(args.out, out, "calibration")
+        return (f"calibrated to {len(result.targets)} identified modes: max error {result.max_error_pct:.3g} %; "
+                f"{result.identifiability['summary']}; wrote {args.out}")
+    targets = read_targets(args.targets)
+    search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
+    result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
+                           seed=args.seed, refine_result=args.refine)
+    write_result(args.out, result.to_json(), "calibration")
+    refined = ""
+    if result.refinement is not None:
+        refined = (" after CasADi refinement" if result.refinement["improved"]
+                   else " (refinement did not improve; global result kept)")
+    within = "" if args.priors else " within the seed's Table 7 ranges (intercity trailer car)"
+    return (f"{args.method} x {args.runs} runs{within}{refined}: max error {result.max_error_pct:.3g} %; "
+            f"{result.identifiability['summary']}; wrote {args.out}")
+
+
+def validate(campaign, calibration: dict, args) -> str:
+    from calibration.validation.in_service import validate as validate_runs
+
+    p = parameters(calibration, args.calibration)
+    result = validate_runs(campaign, p, progress=progress_for(args))
+    png = result.plot(Path(args.out).with_suffix(".png"))
+    out = result.to_json()
+    out["plot"] = str(png)
+    write_result(args.out, out, "validation")
+    summary = "; ".join(f"{k}: NRMSE {v['nrmse']:.3f}, PSD {v['psd_log_error_db']:.2f} dB"
+                        for k, v in out["channels"].items())
+    return (f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-"
+            f"{result.band_m[1]:g} m): {summary}; wrote {names(args.out, png)}")
+
+
+def crosscheck(calibration: dict, args, png: Path | None) -> str:
+    from .crosscheck import crosscheck_car
+
+    p = parameters(calibration, args.calibration)
+    distance, level = track_for_crosscheck(args)
+    try:
+        report = crosscheck_car(p, distance, level, speed=args.speed, duration=args.duration,
+                                with_fmu=not args.no_fmu, plot=png)
+    except ValueError as e:
+        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
+    write_result(args.out, report, "crosscheck")
+    e, t = report["eigen"], report["time"]
+    return (f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped eigenvalues "
+            f"{e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst NRMSE "
+            f"{t['worst_nrmse']:.1e} (exudyn, railcal{'' if args.no_fmu else ', FMU'}); verdict {report['verdict']} "
+            f"(wall time {report['wall_time_s']:.1f} s, not judged); wrote {names(args.out, report.get('plot'))}")

@@ -1,0 +1,71 @@
+"""What every command shares: exit codes, the campaign and calibration a command reads, its
+progress, and how a summary names the files written."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+
+from calibration.data.campaign import open_campaign
+from calibration.data.errors import InputError
+from calibration.data.outputs import read_result
+
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
+
+
+def names(*paths) -> str:
+    """'a, b and c' of the files written (None: not written)."""
+    written = [str(p) for p in paths if p is not None]
+    return written[0] if len(written) == 1 else f"{', '.join(written[:-1])} and {written[-1]}"
+
+
+def progress_for(args):
+    """Messages and counted bars on stderr (calibration/progress.py); None with --quiet."""
+    if getattr(args, "quiet", False):
+        return None
+    from calibration.progress import Progress
+
+    return Progress()
+
+
+def campaign_of(args):
+    """The command's campaign, its run files held inside its folder unless --allow-outside."""
+    return open_campaign(args.campaign, allow_outside=args.allow_outside)
+
+
+@contextmanager
+def about_calibration(path):
+    """Errors raised while a calibration file's content is used name that file: an
+    InputError keyed by one of the file's keys (not a command-line option) gets its path."""
+    try:
+        yield
+    except InputError as e:
+        if e.key is not None and not e.key.startswith("-"):
+            raise e.located(path) from None
+        raise
+
+
+def read_calibration(path) -> dict:
+    """A calibration file (railcal calibrate --out) with a parameters table, or exit 2."""
+    path = Path(path)
+    calibration = read_result(path, ("calibration", "diagnosis"))
+    if "parameters" not in calibration:
+        raise InputError("not a calibration result: no 'parameters'", path=path, key="parameters")
+    params = calibration["parameters"]
+    if not isinstance(params, dict):
+        raise InputError(f"'parameters' must map names to values, got {type(params).__name__}", path=path,
+                         key="parameters")
+    return calibration
+
+
+def track_for_crosscheck(args):
+    """(distance, level) [m] of --track, or a synthetic track (German low-disturbance spectrum,
+    3-70 m) long enough for --speed x --duration."""
+    from calibration.data.campaign import read_track_file
+
+    if args.track:
+        rec = read_track_file(Path(args.track))
+        return rec.distance, rec.level
+    from fmu_src.reference import smooth_profile
+
+    s, z, _ = smooth_profile(args.speed * args.duration + 60.0, seed=3)
+    return s, z

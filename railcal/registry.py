@@ -1,0 +1,110 @@
+"""The vehicle models railcal calibrates, one entry each: what the commands do for the model,
+from identification to the FMU. The commands dispatch through :data:`MODELS` and the tests
+loop over it, so adding a vehicle model is one entry here (and its functions)."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from calibration.data.errors import InputError
+from fmu_src.export import box_fmu_spec, car2d_fmu_spec
+
+from . import box, car2d
+
+
+@dataclass(frozen=True, kw_only=True)
+class VehicleModel:
+    """One vehicle model and how each command treats it.
+
+    name : the calibration file's ``model`` and ``--model``'s value.
+    campaign_kind : the campaign kind (campaign.toml ``kind``) it is calibrated from.
+    identify(campaign, args, png, second) -> summary : identify a campaign, write the JSON and
+        two figures.
+    modes(args) -> dict : the eigen-analysis of ``railcal modes``.
+    calibrate(args) -> summary : calibrate to a campaign or to typed targets, write the file.
+    validate(campaign, calibration, args) -> summary : compare the calibrated model with the
+        campaign, write the JSON and its figure.
+    diagnose(campaign, progress) -> diagnosis : what the model gets wrong (a result object
+        with ``cause``, ``summary``, ``to_json()`` and ``plot(stem)``).
+    diagnosis_figures : the suffixes of the figures ``plot`` writes beside the JSON.
+    fmu_spec(calibration, track=, campaign=, cutoff_hz=) -> ModelSpec : the FMU's description.
+    crosscheck(calibration, args, png) -> summary : the exudyn cross-check, written.
+    crosscheck_figure : whether the cross-check draws a figure (beside its JSON, .png).
+    example_calibration() -> dict : a calibration of the model at nominal parameters, for
+        building and testing its FMU without a campaign.
+    """
+
+    name: str
+    description: str
+    campaign_kind: str
+    identify: Callable
+    modes: Callable
+    calibrate: Callable
+    validate: Callable
+    diagnose: Callable
+    diagnosis_figures: tuple[str, ...]
+    fmu_spec: Callable
+    crosscheck: Callable
+    crosscheck_figure: bool
+    example_calibration: Callable[[], dict]
+
+
+def _diagnose_in_service(campaign, progress):
+    from calibration.diagnosis.in_service import diagnose_in_service
+
+    return diagnose_in_service(campaign, progress=progress)
+
+
+def _diagnose_excitation(campaign, progress):
+    from calibration.diagnosis.excitation import diagnose_excitation
+
+    return diagnose_excitation(campaign, progress=progress)
+
+
+def _car_example() -> dict:
+    from calibration.models.vehicles import INTERCITY_TRAILER
+
+    return {"model": "car2d", "parameters": INTERCITY_TRAILER.as_dict()}
+
+
+def _box_example() -> dict:
+    from calibration.models.box.rig import EXCITER, SENSOR_GRID, point_record
+
+    return {"model": "box", "parameters": {}, "sensors": [point_record(s) for s in SENSOR_GRID],
+            "exciter": point_record(EXCITER)}
+
+
+MODELS: dict[str, VehicleModel] = {m.name: m for m in (
+    VehicleModel(name="car2d", description="the 2D car: carbody, two bogies, four wheelsets (in-service seed)",
+                 campaign_kind="in_service", identify=car2d.identify, modes=car2d.modes, calibrate=car2d.calibrate,
+                 validate=car2d.validate, diagnose=_diagnose_in_service,
+                 diagnosis_figures=("_residual_psd", "_speed_map"), fmu_spec=car2d_fmu_spec,
+                 crosscheck=car2d.crosscheck, crosscheck_figure=True, example_calibration=_car_example),
+    VehicleModel(name="box", description="the box-type vehicle: flexible carbody on its suspension (carbody seed)",
+                 campaign_kind="stationary_excitation", identify=box.identify, modes=box.modes,
+                 calibrate=box.calibrate, validate=box.validate, diagnose=_diagnose_excitation,
+                 diagnosis_figures=("_frf", "_mac"), fmu_spec=box_fmu_spec, crosscheck=box.crosscheck,
+                 crosscheck_figure=False, example_calibration=_box_example),
+)}
+
+
+def model_named(name, *, key: str = "--model", path=None) -> VehicleModel:
+    """The entry of ``name``, or exit 2 naming where the name came from."""
+    if name not in MODELS:
+        raise InputError(f"unknown model {name!r}; have: {', '.join(MODELS)}", path=path, key=key)
+    return MODELS[name]
+
+
+def model_of_calibration(calibration: dict, path) -> VehicleModel:
+    """The model a calibration file names (files without ``model``: car2d, the first kind)."""
+    return model_named(calibration.get("model", "car2d"), key="model", path=Path(path))
+
+
+def model_for_campaign(campaign) -> VehicleModel:
+    """The model a campaign of its kind calibrates."""
+    for m in MODELS.values():
+        if m.campaign_kind == campaign.meta.kind:
+            return m
+    raise InputError(f"no model is calibrated from a {campaign.meta.kind!r} campaign",
+                     path=campaign.root / "campaign.toml", key="kind")

@@ -1,0 +1,50 @@
+"""``railcal synth``: synthetic campaigns and their truth. With the demo, the only part of
+the application that imports the truth simulators (calibration/truth)."""
+from __future__ import annotations
+
+from calibration.data.errors import InputError
+from calibration.data.outputs import check_campaign_output
+
+from .common import EXIT_OK, progress_for
+
+
+def cmd_synth_in_service(args) -> int:
+    from calibration.truth.effects import parse_effect
+    from calibration.truth.in_service import InServiceSettings, synth_in_service
+    from calibration.truth.track import LineSpec
+
+    effect = parse_effect(args.effect, "in_service")
+    if args.journeys < 1:
+        raise InputError(f"--journeys must be >= 1, got {args.journeys}", key="--journeys")
+    if not 5.0 <= args.length_km <= 500.0:
+        raise InputError(f"--length-km must be within 5..500 km, got {args.length_km}", key="--length-km")
+    check_campaign_output(args.out, overwrite=args.force)
+    settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
+                                 carbody_sensors=args.carbody_sensors)
+    truth = synth_in_service(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
+                             overwrite=args.force, progress=progress_for(args))
+    f = truth["frequencies_hz"]
+    print(f"wrote {args.out} ({args.journeys} journeys x {args.length_km:g} km) and {args.out}.truth.json; "
+          + ", ".join(f"{k} {v:.3f} Hz" for k, v in f.items()))
+    return EXIT_OK
+
+
+def cmd_synth_excitation(args) -> int:
+    from calibration.truth.effects import parse_effect
+    from calibration.truth.excitation import ExcitationSettings, synth_excitation
+
+    effect = parse_effect(args.effect, "stationary_excitation")
+    if args.runs < 1:
+        raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
+    if not 20.0 * args.runs <= args.duration <= 7200.0:
+        raise InputError(f"--duration must be within {20 * args.runs:g}..7200 s (at least 20 s per run), "
+                         f"got {args.duration:g}", key="--duration")
+    check_campaign_output(args.out, overwrite=args.force)
+    settings = ExcitationSettings(runs=args.runs, duration=args.duration)
+    truth = synth_excitation(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
+                             overwrite=args.force, progress=progress_for(args))
+    elastic = [f"{k} {f:.2f} Hz" for k, f in truth["frequencies_hz"].items() if truth["mode_kinds"][k] == "elastic"]
+    print(f"wrote {args.out} ({args.runs} runs x {settings.run_duration:g} s, {len(truth['sensors'])} floor "
+          f"accelerometers and the exciter force at {settings.fs:g} Hz) and {args.out}.truth.json; "
+          f"{truth['modes_kept']['count']} modes kept; elastic modes in 3-25 Hz: {', '.join(elastic)}")
+    return EXIT_OK
