@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from . import checks
 from .data.campaign import Campaign, Sensor
 from .data.errors import InputError
 from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
@@ -110,39 +111,96 @@ def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.G
         return res, np.exp(res.best)
 
 
+@dataclass(frozen=True, kw_only=True)
+class SwarmSettings:
+    """How the particles search.
+
+    pso : the seed's swarm (particles, iterations, its stop [%]).
+    seed : of the random generator every swarm draws from.
+    swarms : the particles are split into this many independent swarms, run one after the
+        other (one: the seed's single swarm); each swarm's best is refined and polished as
+        soon as it ends and the lowest full-model error is the answer, the others reported
+        beside it.
+    done_pct : no further swarm runs once one ends, refined, at or below this error [%] on
+        the full model (None, and always without a refinement: ``pso.target``, where a swarm
+        itself stops).
+    log_factors : the particles move in the factors' logarithms (a box spanning ratios of 16
+        or more, where a linear swarm crowds the upper end).
+    """
+
+    pso: PSOSettings = PSOSettings(target=PAPER_STOP_PCT)
+    seed: int = 0
+    swarms: int = 1
+    done_pct: float | None = None
+    log_factors: bool = False
+
+    def __post_init__(self):
+        checks.whole(self, "seed", minimum=0)
+        checks.whole(self, "swarms")
+        if self.pso.particles // self.swarms < 2:
+            raise ValueError(f"SwarmSettings: {self.swarms} swarms of {self.pso.particles} particles: each swarm "
+                             "needs 2 or more")
+        if self.done_pct is not None:
+            checks.non_negative(self, "done_pct")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RefineSettings:
+    """What follows each swarm.
+
+    enabled : the CasADi refinement on the reduced model, in rounds judged on the full model.
+    rounds : at most this many rounds; they stop early at ``tol_pct`` [%] on the full model.
+    polish_steps : then up to this many sequential-LP steps on the full model that keep the
+        MAC floor (:func:`calibration.box_refine.polish_box`; each costs one full eigen-solve).
+    """
+
+    enabled: bool = True
+    rounds: int = 10
+    tol_pct: float = 1e-4
+    polish_steps: int = 0
+
+    def __post_init__(self):
+        checks.whole(self, "rounds")
+        checks.whole(self, "polish_steps", minimum=0)
+        checks.non_negative(self, "tol_pct")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PairingSettings:
+    """Which model modes a target may pair with (:class:`calibration.models.box.fit.BoxFit`):
+    at least ``min_carbody_share`` of the mode's kinetic energy in the carbody, and a MAC with
+    the target of at least ``min_mac`` for the pairing to count."""
+
+    min_carbody_share: float = MIN_CARBODY_SHARE
+    min_mac: float = 0.0
+
+    def __post_init__(self):
+        checks.fraction(self, "min_carbody_share", "min_mac", closed=True)
+
+
 def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[SearchParameter, ...], *,
-                  settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT), seed: int = 0, refine: bool = True,
-                  sigma_f=0.002, model=None, factors: FactorSet | None = None, progress=None,
-                  min_carbody_share: float = MIN_CARBODY_SHARE, min_mac: float = 0.0, log_factors: bool = False,
-                  refine_rounds: int = 10, refine_tol_pct: float = 1e-4, polish_steps: int = 0, order_change: int = 0,
-                  swarms: int = 1, done_pct: float | None = None, exciter: Sensor | None = None) -> BoxCalibration:
-    """``sensors``: the campaign sensors the target shapes are given at (for the operator);
+                  swarm: SwarmSettings = SwarmSettings(), refinement: RefineSettings = RefineSettings(),
+                  pairing: PairingSettings = PairingSettings(), sigma_f=0.002, model=None,
+                  factors: FactorSet | None = None, order_change: int = 0, exciter: Sensor | None = None,
+                  progress=None) -> BoxCalibration:
+    """The seed's swarm over the box model's stiffness factors, each swarm refined
+    (``swarm``, ``refinement``, ``pairing``: the grouped settings).
+
+    ``sensors``: the campaign sensors the target shapes are given at (for the operator);
     ``exciter``: where the test's force acted (recorded with the sensors for the FMU);
     ``search``: one entry per factor of ``factors`` (a named set, default grouped) or, for a
     ``model`` assembled elsewhere, of that model (its file then records the set "custom");
-    ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability;
-    ``min_carbody_share``, ``min_mac``: which pairings count (:class:`BoxFit`);
-    ``log_factors``: the swarm moves in the factors' logarithms (a box spanning ratios of
-    16 or more, where a linear swarm crowds the upper end); ``refine_rounds``: of the CasADi
-    refinement, which stops early at ``refine_tol_pct`` [%] on the full model;
-    ``polish_steps``: after the refinement, up to this many sequential-LP steps on the full
-    model that keep the MAC floor (:func:`polish_box`; each costs one full
-    eigen-solve). A set's ``polish_only`` factors stay nominal in the
-    swarm and the refinement (a model without them) and join the polish (a model with them);
-    without a polish they stay nominal. ``order_change``: added to every panel order of a
-    set's model (negative: a coarse, fast model for tests).
-
-    ``swarms``: the particles are split into this many independent swarms, run one after
-    the other from the same random generator (one: the seed's single swarm). A swarm
-    gathers on one basin; each swarm's best is refined and polished as soon as the swarm ends
-    and the lowest full-model error is the answer, the others reported beside it. No further
-    swarm runs once one ends, refined, at or below ``done_pct`` on the full model (default,
-    and always without ``refine``: ``settings.target``, the seed's stopping rule, where a swarm
-    itself stops)."""
+    ``sigma_f``: relative uncertainty of the measured frequencies for the identifiability.
+    A set's ``polish_only`` factors stay nominal in the swarm and the refinement (a model
+    without them) and join the polish (a model with them); without a polish they stay
+    nominal. ``order_change``: added to every panel order of a set's model (negative: a
+    coarse, fast model for tests)."""
+    settings, seed, swarms = swarm.pso, swarm.seed, swarm.swarms
+    refine, refine_rounds, refine_tol_pct = refinement.enabled, refinement.rounds, refinement.tol_pct
+    polish_steps, log_factors, done_pct = refinement.polish_steps, swarm.log_factors, swarm.done_pct
+    min_carbody_share, min_mac = pairing.min_carbody_share, pairing.min_mac
     if model is not None and factors is not None:
         raise ValueError("give a model or a factor set, not both")
-    if swarms < 1 or settings.particles // swarms < 2:
-        raise ValueError(f"{swarms} swarms of {settings.particles} particles: each swarm needs 2 or more")
     if model is None:
         factors = factor_set(None) if factors is None else factors
         model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.swarm_parameters))
@@ -299,14 +357,14 @@ def _overlap(a, b) -> bool:
     return bool(inside and mac_matrix(a.shape[:, None], b.shape[:, None])[0, 0] >= SPAN_MIN_MAC)
 
 
-def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSettings(target=PAPER_STOP_PCT),
-                           seed: int = 0, refine: bool = True, shaker: ShakerSettings = ShakerSettings(),
-                           progress=None, swarms: int = CAMPAIGN_SWARMS, done_pct: float = CAMPAIGN_DONE_PCT,
-                           refine_tol_pct: float = 1e-4,
-                           order_change: int = 0) -> tuple[BoxCalibration, ShakerIdentification]:
+def calibrate_box_campaign(campaign: Campaign, *,
+                           swarm: SwarmSettings = SwarmSettings(swarms=CAMPAIGN_SWARMS, done_pct=CAMPAIGN_DONE_PCT),
+                           refinement: RefineSettings = RefineSettings(), shaker: ShakerSettings = ShakerSettings(),
+                           order_change: int = 0, progress=None) -> tuple[BoxCalibration, ShakerIdentification]:
     """Identify a stationary excitation campaign's modes and calibrate the box model to them
-    (:func:`calibrate_box`); ``order_change``: added to every panel order of the model
-    (negative: a coarse, fast model, e.g. for a campaign synthesised on the same one)."""
+    (:func:`calibrate_box`; by default in CAMPAIGN_SWARMS swarms, done at CAMPAIGN_DONE_PCT);
+    ``order_change``: added to every panel order of the model (negative: a coarse, fast model,
+    e.g. for a campaign synthesised on the same one)."""
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
@@ -320,6 +378,5 @@ def calibrate_box_campaign(campaign: Campaign, *, settings: PSOSettings = PSOSet
     search = box_search(campaign.meta.priors)
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
-    return calibrate_box(targets_from_identification(ident, band=True), sensors, search, settings=settings, seed=seed,
-                         refine=refine, progress=progress, swarms=swarms, done_pct=done_pct,
-                         refine_tol_pct=refine_tol_pct, order_change=order_change, exciter=exciter), ident
+    return calibrate_box(targets_from_identification(ident, band=True), sensors, search, swarm=swarm,
+                         refinement=refinement, order_change=order_change, exciter=exciter, progress=progress), ident

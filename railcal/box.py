@@ -7,8 +7,8 @@ from pathlib import Path
 
 from calibration.data.errors import InputError
 from calibration.data.outputs import write_result
-from calibration.swarm_defaults import (CAMPAIGN_SWARMS, TYPED_MIN_MAC, TYPED_POLISH_STEPS, TYPED_REFINE_ROUNDS,
-                                        TYPED_SWARMS)
+from calibration.swarm_defaults import (CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_MIN_MAC, TYPED_POLISH_STEPS,
+                                        TYPED_REFINE_ROUNDS, TYPED_SWARMS)
 
 from .common import campaign_of, names, progress_for, track_for_crosscheck
 
@@ -53,7 +53,7 @@ def modes(args) -> dict:
 
 
 def calibrate(args) -> str:
-    from calibration.calibrate_box import calibrate_box_campaign
+    from calibration.calibrate_box import RefineSettings, SwarmSettings, calibrate_box_campaign
     from calibration.optimisers.pso import PSOSettings
 
     if args.method != "pso":
@@ -72,8 +72,10 @@ def calibrate(args) -> str:
         if args.factors not in (None, "grouped"):
             raise InputError(f"a campaign is calibrated over the grouped factor set (its priors name them), not "
                              f"{args.factors!r}", key="--factors")
-        result, ident = calibrate_box_campaign(campaign_of(args), settings=settings, seed=args.seed,
-                                               refine=args.refine, progress=progress_for(args), swarms=swarms)
+        swarm = SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, done_pct=CAMPAIGN_DONE_PCT)
+        result, ident = calibrate_box_campaign(campaign_of(args), swarm=swarm,
+                                               refinement=RefineSettings(enabled=args.refine),
+                                               progress=progress_for(args))
         out = result.to_json(ident)
     else:
         result = _calibrate_typed_targets(args, settings, swarms)
@@ -103,7 +105,7 @@ def _calibrate_typed_targets(args, settings, swarms: int):
     """Targets given by mode type and frequency: each paired by MAC with the type's floor
     pattern at the reference floor grid of the excitation test."""
     from calibration.calibrate import read_priors, read_targets
-    from calibration.calibrate_box import box_search, calibrate_box
+    from calibration.calibrate_box import PairingSettings, RefineSettings, SwarmSettings, box_search, calibrate_box
     from calibration.data.campaign import Prior
     from calibration.models.box import factor_set
     from calibration.models.box.mode_types import MODE_TYPES, typed_targets
@@ -117,11 +119,11 @@ def _calibrate_typed_targets(args, settings, swarms: int):
     given = read_priors(args.priors, searchable=factors.names) if args.priors else ()
     search = box_search({q.name: Prior(q.mean, q.low, q.high) for q in given}, factors=factors)
     typed = typed_targets(targets, SENSOR_GRID, GEOMETRY.length, GEOMETRY.width)
-    return calibrate_box(typed, SENSOR_GRID, search, settings=settings, seed=args.seed, refine=args.refine,
-                         factors=factors, progress=progress_for(args),
-                         min_mac=TYPED_MIN_MAC, log_factors=True, refine_rounds=TYPED_REFINE_ROUNDS,
-                         polish_steps=TYPED_POLISH_STEPS if args.refine else 0, swarms=swarms,
-                         exciter=EXCITER)
+    return calibrate_box(typed, SENSOR_GRID, search, factors=factors, exciter=EXCITER, progress=progress_for(args),
+                         swarm=SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, log_factors=True),
+                         refinement=RefineSettings(enabled=args.refine, rounds=TYPED_REFINE_ROUNDS,
+                                                   polish_steps=TYPED_POLISH_STEPS if args.refine else 0),
+                         pairing=PairingSettings(min_mac=TYPED_MIN_MAC))
 
 
 def validate(campaign, calibration: dict, args) -> str:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.calibrate import calibrate_car, mode_uncertainties, search_from_priors
-from calibration.calibrate_box import calibrate_box_campaign
+from calibration.calibrate_box import RefineSettings, SwarmSettings, calibrate_box_campaign
 from calibration.data.campaign import open_campaign
 from calibration.data.outputs import write_atomic, write_json_atomic, write_result
 from calibration.diagnosis.excitation import ExcitationDiagnosisSettings
@@ -234,10 +234,10 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
                              overwrite=True)  # a rerun replaces its own test
     campaign = open_campaign(root)
     say("7/11 identifying its modes (H1, p-LSCF) and calibrating the box model (particle swarm, CasADi refinement)")
-    calibration, ident = calibrate_box_campaign(campaign, seed=DEMO_SEED, progress=progress, settings=demo.box_pso,
-                                                swarms=demo.box_swarms, done_pct=demo.box_done_pct,
-                                                refine_tol_pct=demo.box_refine_tol_pct,
-                                                order_change=demo.box_order_change)
+    swarm = SwarmSettings(pso=demo.box_pso, seed=DEMO_SEED, swarms=demo.box_swarms, done_pct=demo.box_done_pct)
+    calibration, ident = calibrate_box_campaign(campaign, swarm=swarm,
+                                                refinement=RefineSettings(tol_pct=demo.box_refine_tol_pct),
+                                                order_change=demo.box_order_change, progress=progress)
     png, mac_png = ident.plot(out / "shaker_identification.png")
     write_result(out / "shaker_identification.json", {**ident.to_json(), "plot": str(png), "plot_mac": str(mac_png)},
                  "identification")

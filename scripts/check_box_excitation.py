@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.calibrate_box import calibrate_box_campaign
+from calibration.calibrate_box import SwarmSettings, calibrate_box_campaign
+from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS
 from calibration.data.campaign import open_campaign
 from calibration.models.box.fit import select_targets
 from calibration.signals.modal import mac_matrix
@@ -48,8 +49,9 @@ def main() -> int:
                                 / (2 * modal.damping_ratio), 0.0)
             targets = select_targets(modal.frequency_hz, modal.sensor_shapes, strength=strength)
             f_el = modal.frequency_hz[elastic]
-            cal, ident = calibrate_box_campaign(open_campaign(out), seed=seed,
-                                                settings=PSOSettings(particles=args.particles, target=0.5))
+            swarm = SwarmSettings(pso=PSOSettings(particles=args.particles, target=0.5), seed=seed,
+                                  swarms=CAMPAIGN_SWARMS, done_pct=CAMPAIGN_DONE_PCT)
+            cal, ident = calibrate_box_campaign(open_campaign(out), swarm=swarm)
             shapes = np.column_stack([m.shape for m in ident.modes])
             fit = {r["label"]: r for r in cal.fit}
             rows, passed = [], True

@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.calibrate import read_targets
-from calibration.calibrate_box import box_search, calibrate_box
+from calibration.calibrate_box import PairingSettings, RefineSettings, SwarmSettings, box_search, calibrate_box
 from calibration.swarm_defaults import TYPED_MIN_MAC
 from calibration.data.campaign import Sensor
 from calibration.models.box import FactorSet, assemble, shinkansen_vehicle
@@ -162,11 +162,11 @@ def main() -> int:
     factors = FactorSet.from_pairs("check", credible, len(staged))
     search = box_search(factors=factors)
     t0 = time.perf_counter()
-    cal = calibrate_box(typed, SENSOR_GRID, search, factors=factors, seed=args.seed,
-                        settings=PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5),
-                        min_mac=args.min_mac, log_factors=True,
-                        refine_rounds=args.rounds, polish_steps=args.polish,
-                        progress=lambda m: print(" ", m, flush=True))
+    pso = PSOSettings(particles=args.particles, iterations=args.iterations, target=0.5)
+    cal = calibrate_box(typed, SENSOR_GRID, search, factors=factors,
+                        swarm=SwarmSettings(pso=pso, seed=args.seed, log_factors=True),
+                        refinement=RefineSettings(rounds=args.rounds, polish_steps=args.polish),
+                        pairing=PairingSettings(min_mac=args.min_mac), progress=lambda m: print(" ", m, flush=True))
     ref, pol = cal.refinement, cal.refinement.get("polish")
     print(f"swarm {args.particles} x {cal.pso['iterations']} on log factors over {len(cal.pso['factors'])} factors: "
           f"{cal.pso['best_full_pct']:.3f} % (full model), {cal.pso['wall_s']:.0f} s")

@@ -10,7 +10,8 @@ import pytest
 from conftest import COARSE_BOX_ORDERS
 from threadpoolctl import threadpool_limits
 
-from calibration.calibrate_box import box_search, calibrate_box, targets_from_identification
+from calibration.calibrate_box import (PairingSettings, RefineSettings, SwarmSettings, box_search, calibrate_box,
+                                       targets_from_identification)
 from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.excitation import ShakerMode, identify_excitation
@@ -111,8 +112,8 @@ def test_swarm_and_refinement_bring_the_model_to_the_identified_modes(shaker, mo
     assert len(in_band) == 2 and len(targets) == len(ident.modes) - 1  # the pair, and only the pair, merged
     pair = next(t for t in targets if "+" in t.label)
     assert pair.frequency_hz == pytest.approx(f[in_band].mean()) and pair.band * pair.frequency_hz > np.ptp(f[in_band])
-    result = calibrate_box(targets, sensors, box_search(campaign.meta.priors),
-                           settings=PSOSettings(particles=60, iterations=40, target=0.5), seed=1, model=model)
+    result = calibrate_box(targets, sensors, box_search(campaign.meta.priors), model=model,
+                           swarm=SwarmSettings(pso=PSOSettings(particles=60, iterations=40, target=0.5), seed=1))
     assert result.pso["best_full_pct"] <= 0.5 or result.pso["iterations"] == 40
     assert result.max_error_pct <= 0.05  # after the refinement, judged on the full model
     assert min(r["mac"] for r in result.fit) >= 0.9
@@ -407,8 +408,8 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
     fs = factor_set("credible")
     targets = typed_targets({"vertical_bending_1": 9.88, "torsion_1": 15.79}, SENSOR_GRID, 24.5, 3.38)
     cal = calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
-                        settings=PSOSettings(particles=6, iterations=2, target=0.5), min_mac=0.8, log_factors=True,
-                        refine_rounds=1, polish_steps=1)
+                        swarm=SwarmSettings(pso=PSOSettings(particles=6, iterations=2, target=0.5), log_factors=True),
+                        refinement=RefineSettings(rounds=1, polish_steps=1), pairing=PairingSettings(min_mac=0.8))
     out = cal.to_json()
     assert out["factor_set"] == "credible" and list(out["parameters"]) == list(fs.names)
     assert out["pso"]["factors"] == list(fs.names[:14]) and out["refinement"]["polish"]["factors"] == list(fs.names)
@@ -435,8 +436,9 @@ def test_independent_swarms_are_each_refined_and_the_lowest_full_model_error_is_
     fs = factor_set("credible")
     targets = typed_targets({"vertical_bending_1": 9.88, "torsion_1": 15.79}, SENSOR_GRID, 24.5, 3.38)
     cal = calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
-                        settings=PSOSettings(particles=8, iterations=2, target=0.0), min_mac=0.8, log_factors=True,
-                        refine_rounds=1, polish_steps=1, swarms=2)
+                        swarm=SwarmSettings(pso=PSOSettings(particles=8, iterations=2, target=0.0), log_factors=True,
+                                            swarms=2),
+                        refinement=RefineSettings(rounds=1, polish_steps=1), pairing=PairingSettings(min_mac=0.8))
     runs = cal.pso["swarms"]
     assert [r["particles"] for r in runs] == [4, 4] and sum(r["chosen"] for r in runs) == 1
     assert runs[0]["best"] != runs[1]["best"]  # two searches, not one twice
@@ -444,8 +446,7 @@ def test_independent_swarms_are_each_refined_and_the_lowest_full_model_error_is_
     assert chosen["end_max_error_pct"] == min(r["end_max_error_pct"] for r in runs) == cal.max_error_pct
     assert cal.pso["evaluations"] == sum(r["evaluations"] for r in runs) >= 2 * 4 * 3  # 3 generations each
     with pytest.raises(ValueError, match="2 or more"):
-        calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
-                      settings=PSOSettings(particles=8, iterations=2), swarms=5)
+        SwarmSettings(pso=PSOSettings(particles=8, iterations=2), swarms=5)
 
 
 @pytest.mark.slow
@@ -461,8 +462,9 @@ def test_no_further_swarm_runs_once_one_ends_refined_within_the_done_error(model
 
     def swarms_run(done_pct, refine=True):
         cal = calibrate_box(targets, SENSOR_GRID, box_search(factors=fs), factors=fs, order_change=COARSE_BOX_ORDERS,
-                            settings=PSOSettings(particles=6, iterations=1, target=0.0), refine_rounds=1,
-                            swarms=3, done_pct=done_pct, refine=refine)
+                            swarm=SwarmSettings(pso=PSOSettings(particles=6, iterations=1, target=0.0), swarms=3,
+                                                done_pct=done_pct),
+                            refinement=RefineSettings(enabled=refine, rounds=1))
         done = done_pct if refine else 0.0
         assert all(r["end_max_error_pct"] > done for r in cal.pso["swarms"][:-1])
         return len(cal.pso["swarms"])

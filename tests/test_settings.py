@@ -2,6 +2,7 @@
 with a message naming the class and the field."""
 import pytest
 
+from calibration.calibrate_box import PairingSettings, RefineSettings, SwarmSettings
 from calibration.identification.excitation import ShakerSettings
 from calibration.identification.fdd import FDDSettings
 from calibration.identification.in_service import IdentifySettings
@@ -38,6 +39,11 @@ BAD = [
     (InServiceSettings, {"axle_acc_noise": -0.1}, "axle_acc_noise"),
     (InServiceSettings, {"journeys": 0}, "journeys"),
     (LineSpec, {"min_wavelength": 80.0, "max_wavelength": 3.0}, "wavelength"),
+    (SwarmSettings, {"swarms": 0}, "swarms"),
+    (SwarmSettings, {"done_pct": -0.1}, "done_pct"),
+    (RefineSettings, {"rounds": 0}, "rounds"),
+    (RefineSettings, {"polish_steps": -1}, "polish_steps"),
+    (PairingSettings, {"min_mac": 1.2}, "min_mac"),
 ]
 
 

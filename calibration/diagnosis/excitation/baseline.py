@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...calibrate_box import box_search, calibrate_box, targets_from_identification
+from ...calibrate_box import RefineSettings, SwarmSettings, box_search, calibrate_box, targets_from_identification
 from ...signals.modal import mac_matrix
 from .context import Context
 from .family import Layout, Slots
@@ -52,8 +52,9 @@ def fit_baseline(ctx: Context) -> tuple[Fitted, SwarmRecord]:
     campaign = ctx.campaign
     sensors = tuple(campaign.meta.sensor(n) for n in ctx.sensors)
     search = box_search(campaign.meta.priors, ctx.names)
-    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search, settings=s.pso, seed=s.seed,
-                        refine=False, model=ctx.model)
+    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search,
+                        swarm=SwarmSettings(pso=s.pso, seed=s.seed), refinement=RefineSettings(enabled=False),
+                        model=ctx.model)
     p0 = np.array([cal.parameters[n] for n in ctx.names])
     ctx.say(f"swarm on {len(ctx.ident.modes)} identified modes: {cal.pso['iterations']} iterations, modal fit "
             f"{cal.pso['best_full_pct']:.2f} %; FRF refinement of the factors and modal damping")

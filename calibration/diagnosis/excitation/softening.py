@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...calibrate_box import box_search, calibrate_box, targets_from_identification
+from ...calibrate_box import RefineSettings, SwarmSettings, box_search, calibrate_box, targets_from_identification
 from ...models.box import BoxModel
 from .basis import Operators, ReducedFRFModel, Stiffness
 from .context import Context
@@ -89,8 +89,9 @@ def panel_swarm(ctx: Context, panel: str) -> PanelSwarm:
     search = tuple(replace(q, low=q.low / soft) if q.name in own else q for q in prior) + tuple(
         replace(q, name=f"{q.name}@{panel}", low=q.low / soft) for q in prior if q.name in copies)
     sensors = tuple(ctx.campaign.meta.sensor(n) for n in ctx.sensors)
-    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search, settings=s.pso, seed=s.seed,
-                        refine=False, model=model)
+    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search,
+                        swarm=SwarmSettings(pso=s.pso, seed=s.seed), refinement=RefineSettings(enabled=False),
+                        model=model)
     found = cal.parameters
     p = np.array([found[n] for n in ctx.names])
     group = np.array([n not in own for n in ctx.names])  # back in the priors (the own ones: by the divisor, later)
