@@ -17,7 +17,7 @@ import numpy as np
 from . import checks
 from .data.campaign import Campaign, Sensor
 from .data.errors import InputError
-from .identification.excitation import ShakerIdentification, ShakerSettings, identify_excitation
+from .identification.excitation import ExcitationIdentification, ExcitationIdentifySettings, identify_excitation
 from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, sensor_operator
@@ -49,7 +49,7 @@ class BoxCalibration:
     sensors: tuple[Sensor, ...] = ()  # the points the target shapes are given at
     exciter: Sensor | None = None  # where the force acted (the FMU's force input)
 
-    def to_json(self, ident: ShakerIdentification | None = None) -> dict:
+    def to_json(self, ident: ExcitationIdentification | None = None) -> dict:
         """The calibration file; with the identification it was fitted to, its modes too
         (the FRF comparison takes their damping)."""
         out = {"model": "box", "method": "pso", "factor_set": self.factor_set, "parameters": self.parameters,
@@ -305,7 +305,7 @@ def _refine_swarm_best(run: dict, fit: BoxFit, polish_fit: BoxFit | None, low, h
     run["p"], run["refinement"] = p, refinement
 
 
-def targets_from_identification(ident: ShakerIdentification, *, band: bool = False) -> tuple[ModeTarget, ...]:
+def targets_from_identification(ident: ExcitationIdentification, *, band: bool = False) -> tuple[ModeTarget, ...]:
     """The identified modes as targets; with ``band`` each carries its half-power band
     (its damping ratio), so that a mode identified at a close pair of model modes is
     compared with the pair's span (:func:`calibration.models.box.fit.band_pairing`).
@@ -359,8 +359,9 @@ def _overlap(a, b) -> bool:
 
 def calibrate_box_campaign(campaign: Campaign, *,
                            swarm: SwarmSettings = SwarmSettings(swarms=CAMPAIGN_SWARMS, done_pct=CAMPAIGN_DONE_PCT),
-                           refinement: RefineSettings = RefineSettings(), shaker: ShakerSettings = ShakerSettings(),
-                           order_change: int = 0, progress=None) -> tuple[BoxCalibration, ShakerIdentification]:
+                           refinement: RefineSettings = RefineSettings(),
+                           identify: ExcitationIdentifySettings = ExcitationIdentifySettings(),
+                           order_change: int = 0, progress=None) -> tuple[BoxCalibration, ExcitationIdentification]:
     """Identify a stationary excitation campaign's modes and calibrate the box model to them
     (:func:`calibrate_box`; by default in CAMPAIGN_SWARMS swarms, done at CAMPAIGN_DONE_PCT);
     ``order_change``: added to every panel order of the model (negative: a coarse, fast model,
@@ -368,7 +369,7 @@ def calibrate_box_campaign(campaign: Campaign, *,
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
-    ident = identify_excitation(campaign, shaker)
+    ident = identify_excitation(campaign, identify)
     if not ident.modes:
         raise InputError("no mode identified in the analysis band; nothing to calibrate to",
                          path=campaign.root / "runs")

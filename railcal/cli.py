@@ -204,7 +204,7 @@ def cmd_demo(args) -> int:
         raise InputError("exists and is not a folder; --out takes the folder to write the demo into", path=out,
                          key="--out")
     # the demo replaces its own campaigns there: refuse before any work if one is not railcal's
-    for name in ("campaign", "shaker"):
+    for name in ("campaign", "excitation"):
         check_campaign_output(out / name, overwrite=True)
     report = run_demo(Path(args.out), progress=progress_for(args), full=args.full)
     print(f"demo finished: report {report}; wrote its results, figures and FMUs into {args.out}")

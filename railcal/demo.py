@@ -5,7 +5,7 @@ Today the pipeline is:
 * in service: synthesise a campaign (truth simulator), identify the vehicle's modes
   (segmental FDD and segmental input-output), calibrate the 2D car to them (Cross-Entropy,
   then CasADi refinement, with identifiability), validate over the track recording;
-* stationary shaker test: synthesise the test of the Shinkansen-type box carbody, identify
+* stationary excitation (shaker) test: synthesise the test of the Shinkansen-type box carbody, identify
   its modes (H1, p-LSCF), calibrate the box model by the seed's particle swarm and the
   CasADi refinement, compare measured and model FRFs;
 
@@ -48,7 +48,7 @@ DEMO_SEED = 7
 class DemoSettings:
     """How big the demo's data and searches are. :data:`FULL`: the sizes of the published
     methods (10 journeys over 40 km; the seed's 1000 particles; the full-order box model);
-    :data:`QUICK` (the default): smaller, and the shaker test on a coarse box model, chosen
+    :data:`QUICK` (the default): smaller, and the excitation test on a coarse box model, chosen
     so that every answer the report checks stays right (README, ``railcal demo``)."""
 
     in_service: InServiceSettings
@@ -57,8 +57,8 @@ class DemoSettings:
     box_swarms: int
     box_done_pct: float = CAMPAIGN_DONE_PCT
     box_refine_tol_pct: float = 1e-4  # the CasADi refinement stops here [%]
-    stationary: ExcitationDiagnosisSettings = field(default_factory=ExcitationDiagnosisSettings)
-    box_order_change: int = 0  # added to every panel order of the shaker test's box model (negative: coarse)
+    excitation_diagnosis: ExcitationDiagnosisSettings = field(default_factory=ExcitationDiagnosisSettings)
+    box_order_change: int = 0  # added to every panel order of the excitation test's box model (negative: coarse)
 
     def __post_init__(self):
         if self.car_runs < 1 or self.box_swarms < 1:
@@ -67,20 +67,16 @@ class DemoSettings:
 
     @property
     def excitation(self) -> ExcitationSettings:
-        """The shaker test synthesised: 2 x 300 s on the box model at these panel orders."""
+        """The excitation test synthesised: 2 x 300 s on the box model at these panel orders."""
         return ExcitationSettings(order_change=self.box_order_change)
 
 
 FULL = DemoSettings(InServiceSettings(journeys=10, line=LineSpec(length=40_000.0), carbody_sensors=True), car_runs=3,
                     box_pso=PSOSettings(target=0.5), box_swarms=CAMPAIGN_SWARMS)
-#: 8 x 10 km: as much running as 4 x 20 km (a seventh of FULL's), but eight cruise speeds
-#: (25-40 m/s for seed 7) tell the two bogies' rails apart where four (37-40 m/s) did not (the
-#: carbody fit's separability limit); rigid-body modes within 0.0-0.9 % of the truth (limits 3
-#: and 2 %). The shaker test on the coarse box model (every panel order
-#: - 4, 969 DOF against 2709): synthesis, calibration and diagnosis on one discretisation, so
-#: that its many eigen-solves stay cheap. Swarms of 100 particles: the first reached the seed's 0.5 %
-#: in 22 iterations and refined to 0.008 %, below the 0.1 % that ends the search; the
-#: refinement stops at 0.01 %, a tenth of that and below the identification's 0.03-0.07 %
+#: The quick demo: 8 journeys x 10 km, a seventh of FULL's running but enough cruise speeds to
+#: tell the two bogies' rails apart; the excitation test on the coarse box model (every panel
+#: order - 4: 969 DOF against 2709) so that its eigen-solves stay cheap; swarms of 100
+#: particles, and a refinement that stops at 0.01 %, a tenth of the 0.1 % that ends the search.
 QUICK = DemoSettings(InServiceSettings(journeys=8, line=LineSpec(length=10_000.0), carbody_sensors=True), car_runs=3,
                      box_pso=PSOSettings(particles=200, iterations=200, target=0.5), box_swarms=2,
                      box_refine_tol_pct=0.01, box_order_change=-4)
@@ -132,9 +128,9 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     write_result(out / "validation.json", validation.to_json(), "validation")
     say("5/11 diagnosing what the model gets wrong (residuals, hypotheses, held-out gain)")
     diagnosis = _diagnose(out, campaign, truth, progress)
-    shaker = _shaker(out, say, progress, demo)
+    excitation = _excitation_test(out, say, progress, demo)
     say("9/11 exporting FMUs of the calibrated car and box-type vehicle, running them in fmpy")
-    fmus = _fmus(out, campaign, calibration.parameters, shaker["calibration_json"])
+    fmus = _fmus(out, campaign, calibration.parameters, excitation["calibration_json"])
     say("10/11 cross-checking the calibrated car in exudyn against railcal's model and its FMU")
     from railcal.crosscheck import crosscheck_car
 
@@ -143,9 +139,9 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
                             plot=out / "crosscheck.png")
     write_result(out / "crosscheck.json", xcheck, "crosscheck")
     say("11/11 writing the report")
-    checks = _checks(truth, result, calibration, shaker, diagnosis, xcheck)
+    checks = _checks(truth, result, calibration, excitation, diagnosis, xcheck)
     walls["end"] = time.perf_counter()
-    text = (_report(truth, result, png.name, calibration, validation, demo) + _shaker_report(shaker, demo)
+    text = (_report(truth, result, png.name, calibration, validation, demo) + _excitation_report(excitation, demo)
             + _diagnosis_report(diagnosis) + _fmu_report(fmus) + _crosscheck_report(xcheck)
             + _checks_report(checks) + _walls_report(walls, demo))
     report = write_atomic(out / "report.md", lambda f: f.write(text.encode()))
@@ -154,7 +150,7 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     return report
 
 
-def _checks(truth: dict, result, calibration, shaker: dict, diagnosis: dict, xcheck: dict) -> list[tuple[str, bool]]:
+def _checks(truth: dict, result, calibration, excitation: dict, diagnosis: dict, xcheck: dict) -> list[tuple[str, bool]]:
     """What the demo's answers must be on its effect-free synthetic data: (statement, held)."""
     out = []
     for lbl, limit in IDENTIFY_LIMIT_PCT.items():
@@ -167,13 +163,13 @@ def _checks(truth: dict, result, calibration, shaker: dict, diagnosis: dict, xch
     lim = max(IDENTIFY_LIMIT_PCT.values())
     out.append((f"2D car calibrated to the identified modes within {lim:g} %: {calibration.max_error_pct:.2g} %",
                 calibration.max_error_pct <= lim))
-    cal, pso = shaker["calibration"], shaker["calibration"].pso
-    worst = max((100 * abs(m.frequency_hz / ft - 1) for m, _, ft, _ in shaker["pairs"]), default=np.inf)
+    cal, pso = excitation["calibration"], excitation["calibration"].pso
+    worst = max((100 * abs(m.frequency_hz / ft - 1) for m, _, ft, _ in excitation["pairs"]), default=np.inf)
     out.append((f"box carbody modes identified within 1 % of the truth: {worst:.2f} %", worst <= 1.0))
     done = pso.get("done_pct", pso["stop_pct"])
     out.append((f"box model calibrated to the identified modes within {done:g} % (full model): "
                 f"{cal.max_error_pct:.3g} %", cal.max_error_pct <= done))
-    for d, what in ((diagnosis, "in-service"), (shaker["diagnosis"], "shaker test")):
+    for d, what in ((diagnosis, "in-service"), (excitation["diagnosis"], "excitation test")):
         out.append((f"{what} diagnosis answers none on effect-free data: {d['cause']}", d["cause"] == "none"))
     out.append((f"exudyn cross-check: {xcheck['verdict']}", xcheck["verdict"] == "pass"))
     return out
@@ -223,9 +219,9 @@ def _diagnosis_report(d: dict, heading: str = "## Diagnosis (`railcal diagnose`)
     return "\n".join(lines)
 
 
-def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
+def _excitation_test(out: Path, say, progress, demo: DemoSettings) -> dict:
     """The stationary excitation test of the box carbody, from synthesis to FRF comparison."""
-    root = out / "shaker"
+    root = out / "excitation"
     say("6/11 synthesising a stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
     excitation = demo.excitation
     # the effect-free box model: the truth simulator's, the calibration's and the diagnosis's
@@ -238,16 +234,16 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
     calibration, ident = calibrate_box_campaign(campaign, swarm=swarm,
                                                 refinement=RefineSettings(tol_pct=demo.box_refine_tol_pct),
                                                 order_change=demo.box_order_change, progress=progress)
-    png, mac_png = ident.plot(out / "shaker_identification.png")
-    write_result(out / "shaker_identification.json", {**ident.to_json(), "plot": str(png), "plot_mac": str(mac_png)},
+    png, mac_png = ident.plot(out / "excitation_identification.png")
+    write_result(out / "excitation_identification.json", {**ident.to_json(), "plot": str(png), "plot_mac": str(mac_png)},
                  "identification")
     cal_json = calibration.to_json(ident)
-    write_result(out / "shaker_calibration.json", cal_json, "calibration")
-    say("8/11 comparing measured and model FRFs; diagnosing the shaker test (box baseline, extensions, held-out run)")
+    write_result(out / "excitation_calibration.json", cal_json, "calibration")
+    say("8/11 comparing measured and model FRFs; diagnosing the excitation test (box baseline, extensions, held-out run)")
     frf = compare_frf(campaign, cal_json, ident)
-    frf.plot(out / "shaker_frf.png")
-    write_json_atomic(out / "shaker_frf.json", frf.to_json())
-    diagnosis = _diagnose_shaker(out, campaign, truth, progress, demo.stationary, model)
+    frf.plot(out / "excitation_frf.png")
+    write_json_atomic(out / "excitation_frf.json", frf.to_json())
+    diagnosis = _diagnose_excitation_test(out, campaign, truth, progress, demo.excitation_diagnosis, model)
     labels = list(truth["frequencies_hz"])
     true_shapes = np.array(truth["mode_shapes"]).T  # (n_sensors, n_modes), sensor order of the campaign
     order = [truth["sensors"].index(s) for s in ident.sensors]
@@ -260,15 +256,15 @@ def _shaker(out: Path, say, progress, demo: DemoSettings) -> dict:
             "pairs": rows, "diagnosis": diagnosis, "n_dof": model.n_dof}
 
 
-def _diagnose_shaker(out: Path, campaign, truth: dict, progress, settings: ExcitationDiagnosisSettings,
+def _diagnose_excitation_test(out: Path, campaign, truth: dict, progress, settings: ExcitationDiagnosisSettings,
                      model) -> dict:
     from calibration.diagnosis.excitation import diagnose_excitation
 
     diag = diagnose_excitation(campaign, progress=progress, settings=settings, model=model)
-    plots = [p.name for p in diag.plot(out / "shaker_diagnosis")]
+    plots = [p.name for p in diag.plot(out / "excitation_diagnosis")]
     result = {**diag.to_json(), "wall_time_s": diag.wall_s, "plots": plots}
     result["truth_effect"] = truth["effect"]
-    write_result(out / "shaker_diagnosis.json", result, "diagnosis")
+    write_result(out / "excitation_diagnosis.json", result, "diagnosis")
     return result
 
 
@@ -354,7 +350,7 @@ def _damping(zeta) -> str:
     return "—" if zeta is None else f"{zeta:.3f}"
 
 
-def _shaker_report(s: dict, demo: DemoSettings) -> str:
+def _excitation_report(s: dict, demo: DemoSettings) -> str:
     truth, ident, cal, frf = s["truth"], s["ident"], s["calibration"], s["frf"]
     if demo.box_order_change:
         model = (f"The quick demo's box model is the coarse {s['n_dof']}-DOF discretisation (every panel order "
@@ -368,7 +364,7 @@ def _shaker_report(s: dict, demo: DemoSettings) -> str:
         "## Stationary excitation test of the box carbody (RTRI seed)",
         "",
         f"Synthetic test, seed {truth['seed']}: exciter under the floor, band random force, "
-        f"{len(ident.sensors)} floor accelerometers; the truth's parameters and modes are in `shaker.truth.json`. "
+        f"{len(ident.sensors)} floor accelerometers; the truth's parameters and modes are in `excitation.truth.json`. "
         + model,
         "",
         "| identified | [Hz] | damping | truth mode | truth [Hz] | error | MAC with truth | model [Hz] | model error | "
@@ -378,8 +374,8 @@ def _shaker_report(s: dict, demo: DemoSettings) -> str:
           f"{100 * (m.frequency_hz / ft - 1):+.3f} % | {mac:.3f} | {fit[m.label]['model_hz']:.3f} | "
           f"{fit[m.label]['error_pct']:+.2g} % | {fit[m.label]['mac']:.3f} |" for m, lbl, ft, mac in s["pairs"]],
         "",
-        f"{len(ident.rejected)} candidates rejected, each with its reason, in `shaker_identification.json`; "
-        "stabilisation diagram `shaker_identification.png`, auto-MAC `shaker_identification_mac.png`.",
+        f"{len(ident.rejected)} candidates rejected, each with its reason, in `excitation_identification.json`; "
+        "stabilisation diagram `excitation_identification.png`, auto-MAC `excitation_identification_mac.png`.",
         "",
         f"Particle swarm ({pso['particles']} particles{' as in the seed' if pso['particles'] == 1000 else ''}, "
         f"stop at {pso['stop_pct']} %"
@@ -393,12 +389,12 @@ def _shaker_report(s: dict, demo: DemoSettings) -> str:
         *[f"| {n} | {v:.4g} | {truth['parameters'][n]:.4g} | {100 * (v / truth['parameters'][n] - 1):+.1f} % |"
           for n, v in cal.parameters.items()],
         "",
-        f"Measured against model FRF (`shaker_frf.png`): FRAC median {float(np.median(frf.frac)):.3f}, "
+        f"Measured against model FRF (`excitation_frf.png`): FRAC median {float(np.median(frf.frac)):.3f}, "
         f"min {float(np.min(frf.frac)):.3f}; log-magnitude error up to {float(frf.log_error_db.max()):.2f} dB rms.",
         "",
-        "![FRF](shaker_frf.png)",
+        "![FRF](excitation_frf.png)",
         "",
-        _diagnosis_report(s["diagnosis"], "### Diagnosis of the shaker test (`railcal diagnose`)"),
+        _diagnosis_report(s["diagnosis"], "### Diagnosis of the excitation test (`railcal diagnose`)"),
     ])
 
 

@@ -61,7 +61,7 @@ SLOW_FIXTURES = {
     "synthetic_campaign": 32,  # a six-journey in-service campaign
     "car_fmus": 36,  # the car FMU compiled for FMI 2 and 3
     "shaker": 26,  # test_box_calibration.py: a 240 s shaker test, synthesised and identified
-    "diagnosed": 125,  # test_diagnosis_stationary.py: a shaker campaign (bracketed sensor), diagnosed
+    "diagnosed": 125,  # test_diagnosis_excitation.py: a shaker campaign (bracketed sensor), diagnosed
     "box_fmus": 6,  # test_fmu_box.py: the box FMU for FMI 2 and 3
     "over_the_track": 6,  # test_reference_box.py: exudyn, railcal and the FMU over a track
     "equipment_campaign": 6,  # test_truth_excitation_effects.py: synthesised shaker campaigns

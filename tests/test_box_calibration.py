@@ -14,7 +14,7 @@ from calibration.calibrate_box import (PairingSettings, RefineSettings, SwarmSet
                                        targets_from_identification)
 from railcal.cli import main
 from calibration.data.campaign import open_campaign
-from calibration.identification.excitation import ShakerMode, identify_excitation
+from calibration.identification.excitation import ExcitationMode, identify_excitation
 from calibration.box_refine import polish_box
 from calibration.signals.modal import mac_matrix
 from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass_matrix,
@@ -133,9 +133,9 @@ def test_identified_modes_inside_one_half_power_band_with_alike_shapes_are_one_t
 
     def ident(mac):
         b = np.sqrt(mac) * a + np.sqrt(1 - mac) * n  # MAC(a, b) = mac
-        return SimpleNamespace(modes=(ShakerMode("mode_1", 10.00, 0.02, a, 5, None),
-                                      ShakerMode("mode_2", 10.05, 0.02, b, 5, None),
-                                      ShakerMode("mode_3", 11.00, 0.02, c, 5, None))), b
+        return SimpleNamespace(modes=(ExcitationMode("mode_1", 10.00, 0.02, a, 5, None),
+                                      ExcitationMode("mode_2", 10.05, 0.02, b, 5, None),
+                                      ExcitationMode("mode_3", 11.00, 0.02, c, 5, None))), b
 
     alike, b = ident(0.9)
     pair, alone = targets_from_identification(alike, band=True)

@@ -46,7 +46,7 @@ def test_full_flag_reaches_run_demo(tmp_path, monkeypatch, flags, full):
     assert seen == {"full": full}
 
 
-@pytest.mark.parametrize("name", ["campaign", "shaker"])
+@pytest.mark.parametrize("name", ["campaign", "excitation"])
 def test_demo_refuses_a_folder_it_did_not_write(tmp_path, monkeypatch, capsys, name):
     """Both campaigns the demo replaces are checked before any work."""
     monkeypatch.setattr(demo, "run_demo", lambda *a, **k: pytest.fail("ran despite a foreign folder"))

@@ -11,7 +11,7 @@ import pytest
 import scipy.signal
 from threadpoolctl import threadpool_limits
 
-from calibration.identification.excitation import ShakerSettings
+from calibration.identification.excitation import ExcitationIdentifySettings
 from calibration.identification.ema import FRFEstimate, Mode, frf_h1, lscf, mode_shapes, mpc, peak_picking
 from calibration.identification.plots import plot_mac, plot_stabilisation
 from calibration.signals.modal import mac_matrix
@@ -158,8 +158,8 @@ def pair_test():
 
 
 def _shaker_modes(est, H=None):
-    """The modes railcal identify's clustering (ShakerSettings) selects in 8-19 Hz."""
-    shaker = ShakerSettings()
+    """The modes railcal identify's clustering (ExcitationIdentifySettings) selects in 8-19 Hz."""
+    shaker = ExcitationIdentifySettings()
     return lscf(est.frequency, est.H if H is None else H, (8.0, 19.0), shaker.orders).select_modes(
         min_fraction=shaker.min_fraction, cluster_tol=shaker.cluster_tol, cluster_mac=shaker.cluster_mac,
         bandwidth_fraction=shaker.bandwidth_fraction)
@@ -224,7 +224,7 @@ def test_a_computational_pole_stable_over_orders_is_not_a_mode(pair_test):
     """Near the band's lower edge (8 Hz) the fraction holds a lightly damped pole over most
     orders that no mode put there; its numerators are no mode shape (their phases spread,
     MPC far under a mode's), so it is not selected."""
-    stab = lscf(pair_test.frequency, pair_test.H, (8.0, 19.0), ShakerSettings().orders)
+    stab = lscf(pair_test.frequency, pair_test.H, (8.0, 19.0), ExcitationIdentifySettings().orders)
     edge = [op.shapes[:, i] for op in stab.orders for i in np.flatnonzero(op.stable_frequency)
             if op.frequency_hz[i] < 8.2]
     assert len(edge) >= 10 and np.median([mpc(x) for x in edge]) < 0.5  # stable in frequency, no real shape

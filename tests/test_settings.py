@@ -3,7 +3,7 @@ with a message naming the class and the field."""
 import pytest
 
 from calibration.calibrate_box import PairingSettings, RefineSettings, SwarmSettings
-from calibration.identification.excitation import ShakerSettings
+from calibration.identification.excitation import ExcitationIdentifySettings
 from calibration.identification.fdd import FDDSettings
 from calibration.identification.in_service import IdentifySettings
 from calibration.models.box.modal import ModalSettings
@@ -22,10 +22,10 @@ BAD = [
     (LineSettings, {"window_s": -8.0}, "window_s"),
     (LineSettings, {"welch_s": 10.0}, "welch_s"),
     (LineSettings, {"impact_lags": (100.0, 5.0)}, "impact_lags"),
-    (ShakerSettings, {"band": (24.0, 6.0)}, "band"),
-    (ShakerSettings, {"nperseg": 0}, "nperseg"),
-    (ShakerSettings, {"orders": (20, 16)}, "orders"),
-    (ShakerSettings, {"cluster_mac": 1.5}, "cluster_mac"),
+    (ExcitationIdentifySettings, {"band": (24.0, 6.0)}, "band"),
+    (ExcitationIdentifySettings, {"nperseg": 0}, "nperseg"),
+    (ExcitationIdentifySettings, {"orders": (20, 16)}, "orders"),
+    (ExcitationIdentifySettings, {"cluster_mac": 1.5}, "cluster_mac"),
     (IdentifySettings, {"carbody_band": (4.0, 0.4)}, "carbody_band"),
     (IdentifySettings, {"min_coherence": -0.1}, "min_coherence"),
     (PSOSettings, {"particles": 1}, "particles"),

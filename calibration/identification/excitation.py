@@ -31,14 +31,14 @@ from . import ema
 
 
 @dataclass(frozen=True)
-class ShakerSettings:
+class ExcitationIdentifySettings:
     band: tuple[float, float] = (6.0, 24.0)  # [Hz] analysis band, inside the force band
     nperseg: int = 4096  # 20.5 s at 200 Hz: 0.049 Hz lines
     orders: tuple[int, ...] = tuple(range(16, 97, 4))
     min_fraction: float = 0.4  # of the orders a mode's pole must be found (frequency-stable) in
     # Poles closer in frequency than the larger of cluster_tol and bandwidth_fraction x their
     # damping ratio (relative), and at least cluster_mac alike in shape, are one mode; the
-    # values come from the pole scatter of a close pair (docs/methods/identification-shaker.md).
+    # values come from the pole scatter of a close pair (docs/methods/identification-excitation.md).
     cluster_tol: float = 0.002
     bandwidth_fraction: float = 0.25
     cluster_mac: float = 0.8
@@ -50,13 +50,13 @@ class ShakerSettings:
         checks.whole(self, "nperseg", minimum=16)
         if not self.orders or any(isinstance(o, bool) or not isinstance(o, int) or o < 2 for o in self.orders) \
                 or list(self.orders) != sorted(set(self.orders)):
-            raise ValueError(f"ShakerSettings.orders must be increasing integers >= 2, got {self.orders!r}")
+            raise ValueError(f"ExcitationIdentifySettings.orders must be increasing integers >= 2, got {self.orders!r}")
         checks.fraction(self, "min_fraction", "cluster_mac", closed=True)
         checks.positive(self, "cluster_tol", "bandwidth_fraction", "max_damping", "peak_separation_hz")
 
 
 @dataclass(frozen=True, eq=False)
-class ShakerMode:
+class ExcitationMode:
     label: str
     frequency_hz: float
     damping_ratio: float | None
@@ -66,14 +66,14 @@ class ShakerMode:
 
 
 @dataclass(frozen=True, eq=False)
-class ShakerIdentification:
+class ExcitationIdentification:
     sensors: tuple[str, ...]
-    modes: tuple[ShakerMode, ...]
+    modes: tuple[ExcitationMode, ...]
     rejected: tuple[dict, ...]
     frf: ema.FRFEstimate
     stabilisation: ema.Stabilisation
     records: int
-    settings: ShakerSettings = field(repr=False, default_factory=ShakerSettings)
+    settings: ExcitationIdentifySettings = field(repr=False, default_factory=ExcitationIdentifySettings)
 
     def plot(self, path, mac=None):
         """The stabilisation diagram at ``path`` and the modes' auto-MAC at ``mac`` (default:
@@ -126,7 +126,8 @@ def _records(campaign: Campaign, force: str, sensors: tuple[str, ...]):
                        np.column_stack([run.channels[c][a + s:a + e] for c in sensors]))
 
 
-def identify_excitation(campaign: Campaign, settings: ShakerSettings = ShakerSettings()) -> ShakerIdentification:
+def identify_excitation(campaign: Campaign,
+                        settings: ExcitationIdentifySettings = ExcitationIdentifySettings()) -> ExcitationIdentification:
     meta = campaign.meta
     toml = campaign.root / "campaign.toml"
     if meta.excitation is None:
@@ -164,10 +165,10 @@ def identify_excitation(campaign: Campaign, settings: ShakerSettings = ShakerSet
     for k, m in enumerate(keep):
         near = [p.frequency_hz for p in peaks if abs(p.frequency_hz / m.frequency_hz - 1) < 0.01]
         nearest = float(min(near, key=lambda x: abs(x - m.frequency_hz))) if near else None
-        modes.append(ShakerMode(f"mode_{k + 1}", float(m.frequency_hz), float(m.damping_ratio), m.shape,
+        modes.append(ExcitationMode(f"mode_{k + 1}", float(m.frequency_hz), float(m.damping_ratio), m.shape,
                                 int(m.n_stable), nearest))
     for p in peaks:
         if not any(abs(p.frequency_hz / m.frequency_hz - 1) < 0.01 for m in keep):
             rejected.append({"frequency_hz": float(p.frequency_hz),
                              "reason": "peak in the FRF sum with no stable pole (not a clear mode)"})
-    return ShakerIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings)
+    return ExcitationIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings)

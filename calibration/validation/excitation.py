@@ -20,7 +20,7 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from ..data.errors import InputError
-from ..identification.excitation import ShakerIdentification, identify_excitation
+from ..identification.excitation import ExcitationIdentification, identify_excitation
 from ..models.box.modal import modal_model
 from ..models.box.shinkansen import calibrated_box_model
 from ..signals.modal import frac, log_error_db
@@ -49,7 +49,7 @@ class FRFComparison:
                 "frac_min": float(self.frac.min()), "frac_median": float(np.median(self.frac))}
 
 
-def compare_frf(campaign: Campaign, calibration: dict, ident: ShakerIdentification | None = None) -> FRFComparison:
+def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentification | None = None) -> FRFComparison:
     ident = identify_excitation(campaign) if ident is None else ident
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)

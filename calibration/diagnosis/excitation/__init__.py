@@ -1,6 +1,6 @@
 """Diagnosis of an excitation test (a shaker test of the box-type carbody; campaign kind
 ``stationary_excitation``): what the calibrated carbody gets wrong, the cause, the extended
-model and the held-out gain (docs/methods/diagnosis-stationary.md).
+model and the held-out gain (docs/methods/diagnosis-excitation.md).
 
 1. **Split** (:mod:`.data`). Odd runs train, even runs are held out; a single run is split
    into halves. Everything is fitted on the training part; the held-out part is used once,

@@ -10,7 +10,7 @@ import numpy as np
 from ...calibrate_box import box_search
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
-from ...identification.excitation import ShakerIdentification, identify_excitation
+from ...identification.excitation import ExcitationIdentification, identify_excitation
 from ...models.box import BoxModel
 from ...models.box.assembly import carbody_mass
 from ...models.box.shinkansen import shinkansen_model
@@ -32,8 +32,8 @@ class Context:
     ops: Operators
     train: Part
     test: Part
-    ident: ShakerIdentification  # of the training part
-    ident_test: ShakerIdentification
+    ident: ExcitationIdentification  # of the training part
+    ident_test: ExcitationIdentification
     meas: MeasuredFRF  # training FRFs in the band
     meas_test: MeasuredFRF
     low: np.ndarray  # factor bounds (priors)
@@ -75,10 +75,10 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
         raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(model.names)}",
                          path=toml, key="priors")
     train, test = split_campaign(campaign, without)
-    ident = identify_excitation(train, settings.shaker)
-    ident_test = identify_excitation(test, settings.shaker)
+    ident = identify_excitation(train, settings.identify)
+    ident_test = identify_excitation(test, settings.identify)
     if not ident.modes:
-        raise CampaignError(f"no mode identified in {settings.shaker.band} Hz of the training part "
+        raise CampaignError(f"no mode identified in {settings.identify.band} Hz of the training part "
                             f"({', '.join(train.label)}); nothing to calibrate to", path=campaign.root / "runs")
     meas, meas_test = measured_frf(ident.frf, settings.band), measured_frf(ident_test.frf, settings.band)
     if meas.frequency.size < 20:

@@ -90,7 +90,7 @@ def compare_modes(ctx: Context, fitted: Fitted) -> ModeComparison:
     s = ctx.settings
     modes, _ = fitted.modes()
     hz = modes.frequency_hz
-    sel = np.flatnonzero((hz >= 0.9 * s.shaker.band[0]) & (hz <= 1.1 * s.shaker.band[1]))
+    sel = np.flatnonzero((hz >= 0.9 * s.identify.band[0]) & (hz <= 1.1 * s.identify.band[1]))
     cols = tuple(f"{hz[k]:.2f} Hz" for k in sel)
     rows = tuple(f"{m.label} {m.frequency_hz:.2f} Hz" for m in ctx.ident.modes)
     if not ctx.ident.modes or not sel.size:

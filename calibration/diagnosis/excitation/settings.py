@@ -4,13 +4,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ... import checks
-from ...identification.excitation import ShakerSettings
+from ...identification.excitation import ExcitationIdentifySettings
 from ...optimisers.pso import PSOSettings
 
 
 def _small_swarm() -> PSOSettings:
     """The baseline's swarm: one swarm of 40 particles x 40 iterations, stopped at 0.5 %
-    (docs/methods/diagnosis-stationary.md, section 1): the FRF refinement after it fixes
+    (docs/methods/diagnosis-excitation.md, section 1): the FRF refinement after it fixes
     the factors, so the swarm only has to find the basin."""
     return PSOSettings(particles=40, iterations=40, target=0.5)
 
@@ -21,8 +21,8 @@ class ExcitationDiagnosisSettings:
 
     Attributes
     ----------
-    shaker : identification of the training and held-out FRFs (H1, p-LSCF); its ``nperseg``,
-        ``band`` etc. have the meanings of :class:`calibration.identification.excitation.ShakerSettings`.
+    identify : identification of the training and held-out FRFs (H1, p-LSCF); its ``nperseg``,
+        ``band`` etc. have the meanings of :class:`calibration.identification.excitation.ExcitationIdentifySettings`.
     band : (low, high) [Hz], the FRF comparison band (inside the exciter's 5-50 Hz force band).
     pso : the baseline's particle swarm on the identified modes.
     seed : the swarm's generator seed.
@@ -48,7 +48,7 @@ class ExcitationDiagnosisSettings:
     one_channel : share of the excess misfit on one channel above which the evidence names it.
     """
 
-    shaker: ShakerSettings = field(default_factory=ShakerSettings)
+    identify: ExcitationIdentifySettings = field(default_factory=ExcitationIdentifySettings)
     band: tuple[float, float] = (6.0, 30.0)
     pso: PSOSettings = field(default_factory=_small_swarm)
     seed: int = 0
@@ -70,7 +70,7 @@ class ExcitationDiagnosisSettings:
 
     def __post_init__(self):
         name = type(self).__name__
-        for key, kind in (("shaker", ShakerSettings), ("pso", PSOSettings)):
+        for key, kind in (("identify", ExcitationIdentifySettings), ("pso", PSOSettings)):
             if not isinstance(getattr(self, key), kind):
                 raise ValueError(f"{name}.{key} must be a {kind.__name__}, got {getattr(self, key)!r}")
         checks.increasing(self, "band", low=0.0)

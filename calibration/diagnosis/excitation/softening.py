@@ -4,7 +4,7 @@ roof, floors, sides, ends) divided by its own factor, fitted to the training FRF
 A softened panel can leave the baseline in a basin far from the truth, so the fit is started
 from three factor sets (the baseline's, the nominal ones, and those of a particle swarm per
 panel on the identified modes with that panel's rigidities searched on their own), scanned
-over panel x divisor, then refined; docs/methods/diagnosis-stationary.md tells which bench
+over panel x divisor, then refined; docs/methods/diagnosis-excitation.md tells which bench
 cases each start was added for."""
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ Targets (issue 7): right cause >= 90 % for every effect, false alarms <= 10 %, h
 error reduced >= 30 % whenever the cause is right; an effect outside the catalogue never
 under a wrong name (``unexplained``).
 
-    python scripts/bench_diagnose_stationary.py [--seeds 10] [--start 2000] [--jobs 2] [--coarse] [--only NAME]
+    python scripts/bench_diagnose_excitation.py [--seeds 10] [--start 2000] [--jobs 2] [--coarse] [--only NAME]
 
 Each worker process runs its linear algebra on one thread (``OMP_NUM_THREADS=1`` and
 friends are set before numpy is imported): with ``--jobs 2`` on two cores that is

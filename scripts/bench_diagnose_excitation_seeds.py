@@ -1,4 +1,4 @@
-"""Benchmark: the excitation-test diagnosis on every seed of tests/test_diagnosis_stationary.py's
+"""Benchmark: the excitation-test diagnosis on every seed of tests/test_diagnosis_excitation.py's
 campaign table, including the series once set aside after a failure (a seed is never
 retired for failing: it stays a case, and the rate counts it).
 
@@ -9,7 +9,7 @@ the right answer is `unexplained`). The coarse box model and the lighter setting
 test file (``FAST``), one BLAS thread per worker. Prints one line per campaign and the
 right-answer rate with its 95 % interval (Wilson score), overall and per effect.
 
-    python scripts/bench_diagnose_stationary_seeds.py [--series 5201 5301 5311] [--jobs 2] [--only NAME]
+    python scripts/bench_diagnose_excitation_seeds.py [--series 5201 5301 5311] [--jobs 2] [--only NAME]
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Diagnosis of excitation tests: the extensions are the physics they claim to be, and an
 effect outside the catalogue (a sensor on a resilient bracket) is `unexplained`, never
 given a wrong name. Whether hidden catalogue effects are named is measured by
-scripts/bench_diagnose_stationary_seeds.py (two to three minutes a campaign).
+scripts/bench_diagnose_excitation_seeds.py (two to three minutes a campaign).
 
 A coarse box model (every panel order - 4, the ``coarse_box_model`` fixture) keeps the
 file fast; the physics checked is the same at full order."""
@@ -149,9 +149,9 @@ def test_reduced_model_reproduces_the_truths_accelerance(model, ops):
     assert np.median(np.abs(H / Ht - 1)) < 1e-3 and rel.max() < 0.02
 
 
-def test_registry_names_the_stationary_effects_of_the_catalogue():
-    stationary = {n for n, s in EFFECTS.items() if "stationary_excitation" in s.kinds}
-    assert set(EXTENSIONS) == stationary
+def test_registry_names_the_excitation_test_effects_of_the_catalogue():
+    catalogue = {n for n, s in EFFECTS.items() if "stationary_excitation" in s.kinds}
+    assert set(EXTENSIONS) == catalogue
     assert all(e.n_params >= 1 and e.description for e in EXTENSIONS.values())
 
 
@@ -235,8 +235,8 @@ def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):
         diagnose_excitation(open_campaign(_campaign_with_unknown_prior(tmp_path)), model=model)
 
 
-def test_railcal_diagnose_takes_stationary_campaigns_and_exits_2_on_bad_input(tmp_path, capsys):
-    """``railcal diagnose`` dispatches on the campaign's kind; a stationary campaign whose
+def test_railcal_diagnose_takes_excitation_campaigns_and_exits_2_on_bad_input(tmp_path, capsys):
+    """``railcal diagnose`` dispatches on the campaign's kind; an excitation campaign whose
     priors name a parameter the box model lacks is refused (exit 2, the key named) and
     nothing is written."""
     out = tmp_path / "d.json"
@@ -249,7 +249,7 @@ def test_railcal_diagnose_takes_stationary_campaigns_and_exits_2_on_bad_input(tm
 #: name. This is case 6 of series 5311; the rest of it (5311 and 5312 underfloor equipment
 #: at mass ratios 0.01 and 0.05, 5313 and 5314 a panel softened by 3 and by 10, 5315
 #: effect-free) and the series 5201 and 5301 are too slow for the suite (two to three
-#: minutes each); they run in scripts/bench_diagnose_stationary_seeds.py, which reports the
+#: minutes each); they run in scripts/bench_diagnose_excitation_seeds.py, which reports the
 #: rate with its interval.
 BRACKET = (5316, "sensor_bracket", 21.0)
 
