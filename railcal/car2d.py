@@ -9,7 +9,7 @@ from calibration.data.errors import InputError
 from calibration.data.outputs import write_result
 from calibration.models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 
-from .common import campaign_of, names, progress_for, track_for_crosscheck
+from .common import campaign_of, names, progress_for
 
 
 def parameters(calibration: dict, path) -> CarParameters:
@@ -119,19 +119,14 @@ def validate(campaign, calibration: dict, args) -> str:
             f"{result.band_m[1]:g} m): {summary}; wrote {names(args.out, png)}")
 
 
-def crosscheck(calibration: dict, args, png: Path | None) -> str:
+def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tuple[dict, str]:
+    """The exudyn cross-check over (distance, level) [m]: the report and its summary."""
     from .crosscheck import crosscheck_car
 
-    p = parameters(calibration, args.calibration)
-    distance, level = track_for_crosscheck(args)
-    try:
-        report = crosscheck_car(p, distance, level, speed=args.speed, duration=args.duration,
-                                with_fmu=not args.no_fmu, plot=png)
-    except ValueError as e:
-        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
-    write_result(args.out, report, "crosscheck")
+    report = crosscheck_car(parameters(calibration, args.calibration), distance, level, speed=args.speed,
+                            duration=args.duration, with_fmu=not args.no_fmu, plot=png)
     e, t = report["eigen"], report["time"]
-    return (f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped eigenvalues "
-            f"{e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at {t['speed_m_s']:g} m/s worst NRMSE "
-            f"{t['worst_nrmse']:.1e} (exudyn, railcal{'' if args.no_fmu else ', FMU'}); verdict {report['verdict']} "
-            f"(wall time {report['wall_time_s']:.1f} s, not judged); wrote {names(args.out, report.get('plot'))}")
+    return report, (f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped "
+                    f"eigenvalues {e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at "
+                    f"{t['speed_m_s']:g} m/s worst NRMSE {t['worst_nrmse']:.1e} (exudyn, railcal"
+                    f"{'' if args.no_fmu else ', FMU'})")

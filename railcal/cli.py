@@ -18,7 +18,7 @@ from calibration.models.parameters import ParameterError
 from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_SWARMS
 
 from .common import (EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, about_calibration, campaign_of, names, progress_for,
-                     read_calibration)
+                     read_calibration, track_for_crosscheck)
 from .registry import MODELS, model_for_campaign, model_named, model_of_calibration
 from .synth import cmd_synth_excitation, cmd_synth_in_service
 
@@ -82,10 +82,15 @@ def _truth_path(campaign_dir) -> Path:
     return Path(f"{Path(campaign_dir).resolve()}.truth.json")
 
 
-def _allow_outside_option(parser) -> None:
-    parser.add_argument("--allow-outside", action="store_true",
-                        help="read run and track files that are links resolving outside the campaign folder "
-                             "(refused by default: a campaign is read from its own folder only)")
+def _finish(parser, func, *, reads_campaign: bool = False) -> None:
+    """What every subcommand takes last: --quiet, --allow-outside where it reads a campaign,
+    and the function that runs it."""
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    if reads_campaign:
+        parser.add_argument("--allow-outside", action="store_true",
+                            help="read run and track files that are links resolving outside the campaign folder "
+                                 "(refused by default: a campaign is read from its own folder only)")
+    parser.set_defaults(func=func)
 
 
 # ------------------------------------------------------------------- model commands
@@ -190,8 +195,17 @@ def cmd_crosscheck(args) -> int:
     check_outputs([args.out, png], inputs=[args.calibration, args.track])
     if not (args.speed > 0 and args.duration > 0):
         raise InputError("--speed and --duration must be positive", key="--speed")
-    with about_calibration(args.calibration):
-        print(model.crosscheck(calibration, args, png))
+    distance, level = track_for_crosscheck(args)
+    try:
+        with about_calibration(args.calibration):
+            report, summary = model.crosscheck(calibration, distance, level, args, png)
+    except InputError:
+        raise
+    except ValueError as e:  # the track does not suit the run (too short for the vehicle and duration)
+        raise InputError(str(e), path=Path(args.track) if args.track else None) from None
+    write_result(args.out, report, "crosscheck")
+    print(f"{summary}; verdict {report['verdict']} (wall time {report['wall_time_s']:.1f} s, not judged); wrote "
+          f"{names(args.out, report.get('plot'))}")
     return EXIT_OK
 
 
@@ -229,8 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "(default: none, the model's own physics only)")
         s.add_argument("--force", action="store_true", help="replace a campaign railcal wrote there before (and "
                        "its truth file); a folder railcal did not write is never removed")
-        s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-        s.set_defaults(func=func)
+        _finish(s, func)
         return s
 
     s = synth_parser("in-service", "in-service journeys (bogie and axle-box sensors)", cmd_synth_in_service)
@@ -249,9 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--plot", default=None, help="PNG of the identification; a second figure goes beside it "
                    "(default: --out with .png)")
     s.add_argument("--seed", type=_seed, default=0, help="seed of the random segment draw")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    _allow_outside_option(s)
-    s.set_defaults(func=cmd_identify)
+    _finish(s, cmd_identify, reads_campaign=True)
 
     s = sub.add_parser("modes", help="eigen-analysis of a model")
     s.add_argument("--model", choices=tuple(MODELS), default="car2d",
@@ -263,8 +274,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "none, the --vehicle set as it is)")
     s.add_argument("--max-hz", type=float, default=25.0, help="box model: modes below this [Hz]")
     s.add_argument("--out", default=None, help="JSON result to write (default: none, the summary only)")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    s.set_defaults(func=cmd_modes)
+    _finish(s, cmd_modes)
 
     s = sub.add_parser("calibrate", help="parameters from target frequencies (global search + identifiability)")
     s.add_argument("campaign", nargs="?", default=None,
@@ -296,25 +306,19 @@ def build_parser() -> argparse.ArgumentParser:
                         "--targets, grouped with a campaign, the truth simulator's factors)")
     s.add_argument("--seed", type=_seed, default=0, help="seed of the search")
     s.add_argument("--out", required=True, help="calibration JSON to write")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    _allow_outside_option(s)
-    s.set_defaults(func=cmd_calibrate)
+    _finish(s, cmd_calibrate, reads_campaign=True)
 
     s = sub.add_parser("validate", help="simulate the runs over the track recording and compare")
     s.add_argument("campaign", help="campaign folder")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
     s.add_argument("--out", required=True, help="JSON result to write (the plot goes beside it, .png)")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    _allow_outside_option(s)
-    s.set_defaults(func=cmd_validate)
+    _finish(s, cmd_validate, reads_campaign=True)
 
     s = sub.add_parser("diagnose", help="find what the model gets wrong on a campaign, name the cause, "
                        "extend the model and measure the gain")
     s.add_argument("campaign", help="campaign folder")
     s.add_argument("--out", required=True, help="JSON to write (plots go beside it)")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    _allow_outside_option(s)
-    s.set_defaults(func=cmd_diagnose)
+    _finish(s, cmd_diagnose, reads_campaign=True)
 
     s = sub.add_parser("export-fmu", help="build an FMI co-simulation FMU of a calibrated model")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
@@ -326,9 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cutoff-hz", type=float, default=None,
                    help="box model: carbody modes kept below this [Hz] (default: 100), the rest statically corrected")
     s.add_argument("--out", required=True, help="the .fmu to write")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    _allow_outside_option(s)
-    s.set_defaults(func=cmd_export_fmu)
+    _finish(s, cmd_export_fmu, reads_campaign=True)
 
     s = sub.add_parser("crosscheck", help="exudyn re-computation against railcal's model and its FMU")
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
@@ -341,16 +343,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="[s] of simulated time (the wall time is reported beside the verdict, not judged)")
     s.add_argument("--no-fmu", action="store_true", help="leave the FMU out (no C compiler)")
     s.add_argument("--out", required=True, help="JSON result to write (car2d: the plot goes beside it, .png)")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    s.set_defaults(func=cmd_crosscheck)
+    _finish(s, cmd_crosscheck)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output", help="folder to write the demo's results into")
     s.add_argument("--full", action="store_true",
                    help="the published methods' sizes (10 journeys over 40 km, the seed's 1000 particles, the "
                         "full-order box model; much longer); default: off, the quick demo")
-    s.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    s.set_defaults(func=cmd_demo)
+    _finish(s, cmd_demo)
     return p
 
 

@@ -29,7 +29,8 @@ class VehicleModel:
         with ``cause``, ``summary``, ``to_json()`` and ``plot(stem)``).
     diagnosis_figures : the suffixes of the figures ``plot`` writes beside the JSON.
     fmu_spec(calibration, track=, campaign=, cutoff_hz=) -> ModelSpec : the FMU's description.
-    crosscheck(calibration, args, png) -> summary : the exudyn cross-check, written.
+    crosscheck(calibration, distance, level, args, png) -> (report, summary) : the exudyn
+        cross-check over a track [m].
     crosscheck_figure : whether the cross-check draws a figure (beside its JSON, .png).
     example_calibration() -> dict : a calibration of the model at nominal parameters, for
         building and testing its FMU without a campaign.

@@ -131,6 +131,12 @@ def coarse_box_model():
     return shinkansen_model(COARSE_BOX_ORDERS)
 
 
+@pytest.fixture(scope="session")
+def model(coarse_box_model):
+    """The box model of the excitation-test files (the coarse one)."""
+    return coarse_box_model
+
+
 # ------------------------------------------------------------------ FMUs
 CAR_FMU_SPEED = 40.0  # [m/s]
 CAR_FMU_START = 100.0  # [m] track distance of the carbody centre at t = 0

@@ -29,11 +29,6 @@ SETTINGS = ExcitationSettings(runs=1, duration=240.0, order_change=COARSE_BOX_OR
 
 
 @pytest.fixture(scope="module")
-def model(coarse_box_model):
-    return coarse_box_model
-
-
-@pytest.fixture(scope="module")
 def shaker(tmp_path_factory, model):
     root = tmp_path_factory.mktemp("shaker") / "test"
     truth = synth_excitation(root, seed=2, settings=SETTINGS, model=model)

@@ -36,11 +36,6 @@ FAST = ExcitationDiagnosisSettings(basis_extra=32, derivative_modes=12, refine_i
 
 
 @pytest.fixture(scope="module")
-def model(coarse_box_model):
-    return coarse_box_model
-
-
-@pytest.fixture(scope="module")
 def ops(model):
     return Operators.build(model, SENSOR_GRID, EXCITER)
 

@@ -23,11 +23,6 @@ SETTINGS = ExcitationSettings(runs=1, duration=60.0, order_change=COARSE_BOX_ORD
 
 
 @pytest.fixture(scope="module")
-def model(coarse_box_model):
-    return coarse_box_model
-
-
-@pytest.fixture(scope="module")
 def synthetic(tmp_path_factory, model):
     root = tmp_path_factory.mktemp("exc_a") / "test"
     truth = synth_excitation(root, seed=3, settings=SETTINGS, model=model)

@@ -33,11 +33,6 @@ G = 9.81
 
 
 @pytest.fixture(scope="module")
-def model(coarse_box_model):
-    return coarse_box_model
-
-
-@pytest.fixture(scope="module")
 def parameters():
     return draw_truth_parameters(SETTINGS, np.random.default_rng(21))
 

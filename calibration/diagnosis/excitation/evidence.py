@@ -6,7 +6,7 @@ again without that channel)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -67,9 +67,7 @@ class ModePair:
     paired: bool
 
     def to_json(self) -> dict:
-        return {"label": self.label, "identified_hz": self.identified_hz, "damping_ratio": self.damping_ratio,
-                "model_hz": self.model_hz, "error_pct": self.error_pct, "mac": self.mac, "partner": self.partner,
-                "shares_partner": self.shares_partner, "paired": self.paired}
+        return asdict(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,9 +149,7 @@ class ChannelLeftOut:
     parameters: dict
 
     def to_json(self) -> dict:
-        return {"channel": self.channel, "channels": self.channels, "heldout_error_mean": self.heldout_error_mean,
-                "heldout_error_per_channel": dict(self.heldout_error_per_channel),
-                "parameters": dict(self.parameters)}
+        return asdict(self)
 
 
 def confined_channel(heldout_error: Mapping[str, float],
