@@ -106,7 +106,7 @@ def nrmse(y: np.ndarray, ref: np.ndarray) -> float:
 def box_reference(reduced, zeta: float, profile: Profile, speed: float, t: np.ndarray, force: np.ndarray, *,
                   start: float = 0.0, substeps: int = 20) -> np.ndarray:
     """Floor accelerations (n_t, n_sensors) [m/s^2] of the reduced box vehicle
-    (:class:`calibration.models.box.reduction.ReducedVehicle`) at the uniform times ``t`` [s],
+    (:class:`calibration.models.box.vehicle_reduction.ReducedVehicle`) at the uniform times ``t`` [s],
     over the track at ``speed`` [m/s] (carbody centre at track distance ``start`` [m] at
     t = 0) with the exciter force ``force`` [N] (given at ``t``, linear in between), started
     in static equilibrium; the rails are evaluated ``substeps`` times per interval of t and

@@ -1,12 +1,12 @@
 """The box-type vehicle of :mod:`calibration.models.box`, built again in exudyn.
 
 An independent reference for railcal's reduced box vehicle
-(:func:`calibration.models.box.reduction.reduce_vehicle`). It is built from the vehicle
+(:func:`calibration.models.box.vehicle_reduction.reduce_vehicle`). It is built from the vehicle
 description (:func:`calibration.models.box.shinkansen.shinkansen_vehicle`) and the stiffness
 factors only: the carbody's modal data (the flexible body's definition) are its free-free
 modes and static-correction pseudo-modes from the free carbody's own matrices
 (``assemble(free_carbody(vehicle))``, by railcal's
-:func:`~calibration.models.box.reduction.carbody_basis`); the vehicle around it, bogies,
+:func:`~calibration.models.box.vehicle_reduction.carbody_basis`); the vehicle around it, bogies,
 suspension and rails, is exudyn's items, never railcal's assembled vehicle or reduced matrices.
 
 The model (carbody frame: x forward, y left, z up; no gravity, coordinates are deviations
@@ -77,7 +77,7 @@ from exudyn.itemInterface import (
 )
 
 from calibration.models.box.assembly import BoxModel, local_operator, assemble
-from calibration.models.box.reduction import carbody_basis
+from calibration.models.box.vehicle_reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
 from reference_models.car2d import RailInput, drive_rail_constraints
@@ -146,7 +146,7 @@ def carbody_modes(vehicle, parameters, cutoff_hz: float, sensors, exciter) -> Ca
     loads.insert(0, ops[labels.index(exciter.name)]["xyz".index(exciter.direction)])
 
     # the modes below the cut-off and the pseudo-modes of these loads: the carbody's own modal
-    # data (calibration.models.box.reduction); the vehicle around it is exudyn's
+    # data (calibration.models.box.vehicle_reduction); the vehicle around it is exudyn's
     V, omega, n_modes = carbody_basis(cb, p, cutoff_hz, np.column_stack(loads))
     basis = np.vstack([op @ V for op in ops])
     return CarbodyModes(omega, n_modes, np.array(pts, float), tuple(labels), basis, float(cutoff_hz))
@@ -196,7 +196,7 @@ class BoxHandles:
 
 def axle_box_wheelsets(vehicle) -> np.ndarray:
     """Track-wise positions [m] (carbody frame) of wheelsets 1-4, leading first: the distinct x
-    of the axle boxes' ground ends, as :func:`~calibration.models.box.reduction.reduce_vehicle`
+    of the axle boxes' ground ends, as :func:`~calibration.models.box.vehicle_reduction.reduce_vehicle`
     numbers them."""
     x = sorted({round(ln.point_a[0], 9) for ln in vehicle.links if ln.body_a == "ground" and ln.body_b != "ground"},
                reverse=True)

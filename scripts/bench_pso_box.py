@@ -25,7 +25,7 @@ import numpy as np
 from calibration.models.box import assemble, shinkansen_vehicle
 from calibration.box_refine import refine_box
 from calibration.models.box.fit import BoxFit, select_targets, sensor_operator
-from calibration.models.box.reduced import full_modes
+from calibration.models.box.parametric_basis import full_modes
 from calibration.optimisers.base import SearchParameter, bounds
 from calibration.optimisers.pso import PSOSettings, particle_swarm
 from calibration.models.box.rig import SENSOR_GRID

@@ -68,7 +68,7 @@ from calibration.models.box import FactorSet, assemble, shinkansen_vehicle
 from calibration.models.box.assembly import StiffnessParameter
 from calibration.models.box.fit import BoxFit, sensor_operator
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets
-from calibration.models.box.reduced import full_modes
+from calibration.models.box.parametric_basis import full_modes
 from calibration.models.box.shinkansen import CREDIBLE_FACTORS, POLISH_JOINT_FACTORS, Geometry
 from calibration.optimisers.base import bounds
 from calibration.optimisers.minimax import linearised_minimax

@@ -25,7 +25,7 @@ import fmpy
 import numpy as np
 
 from calibration.models.box import assemble, shinkansen_vehicle
-from calibration.models.box.reduction import frf_full, frf_reduced, reduce_vehicle
+from calibration.models.box.vehicle_reduction import frf_full, frf_reduced, reduce_vehicle
 from calibration.models.vehicles import INTERCITY_TRAILER as CAR
 from calibration.models.box.rig import EXCITER, SENSOR_GRID
 from fmu_src.box import box_spec

@@ -37,7 +37,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from calibration.models.box.reduction import reduce_vehicle  # noqa: E402
+from calibration.models.box.vehicle_reduction import reduce_vehicle  # noqa: E402
 from calibration.models.simulate import ModalSimulator  # noqa: E402
 from calibration.models.box.rig import EXCITER, SENSOR_GRID  # noqa: E402
 from calibration.models.box.shinkansen import shinkansen_model  # noqa: E402

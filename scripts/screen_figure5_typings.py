@@ -42,7 +42,7 @@ from calibration.swarm_defaults import TYPED_MIN_MAC  # noqa: E402
 from calibration.models.box import assemble, shinkansen_vehicle  # noqa: E402
 from calibration.models.box.fit import BoxFit, sensor_operator  # noqa: E402
 from calibration.models.box.mode_types import MODE_TYPES, typed_targets  # noqa: E402
-from calibration.models.box.reduced import ReducedFamily, full_modes  # noqa: E402
+from calibration.models.box.parametric_basis import ReducedFamily, full_modes  # noqa: E402
 from calibration.models.box.shinkansen import CREDIBLE_FACTORS, Geometry  # noqa: E402
 from calibration.optimisers.minimax import linearised_minimax  # noqa: E402
 from calibration.models.box.rig import SENSOR_GRID

@@ -19,7 +19,7 @@ from calibration.box_refine import polish_box
 from calibration.signals.modal import mac_matrix
 from calibration.models.box.fit import (MAC_SHORTFALL_PCT, BoxFit, ModeTarget, band_pairing, carbody_mass_matrix,
                                         select_targets, sensor_operator)
-from calibration.models.box.reduced import full_modes
+from calibration.models.box.parametric_basis import full_modes
 from calibration.models.box.mode_types import MODE_TYPES, template
 from calibration.optimisers.pso import PSOSettings
 from calibration.models.box.rig import SENSOR_GRID

@@ -10,7 +10,7 @@ from calibration.models.box import assemble, factor_set, shinkansen_vehicle
 from calibration.models.box.factor import factorise
 from calibration.models.box.fit import band_pairing
 from calibration.signals.modal import mac_matrix
-from calibration.models.box.reduced import full_modes
+from calibration.models.box.parametric_basis import full_modes
 
 
 @pytest.fixture(scope="module")

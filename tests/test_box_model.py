@@ -130,7 +130,7 @@ def test_the_rigid_carbody_bounces_on_its_suspension_as_the_two_mass_closed_form
 
 
 def test_a_reduced_basis_reproduces_the_full_model_near_where_it_was_built(vehicle):
-    from calibration.models.box.reduced import ReducedFamily, full_modes
+    from calibration.models.box.parametric_basis import ReducedFamily, full_modes
     coarse = assemble(replace(vehicle, panels=tuple(
         replace(p, order=(max(p.order[0] // 2, 3), max(p.order[1] // 2, 3))) for p in vehicle.panels)))
     p0 = np.ones(len(coarse.names))
@@ -237,7 +237,7 @@ def test_the_inertia_count_is_the_number_of_modes_below_the_cut_off(carbody):
 def test_the_carbody_basis_is_one_eigen_solve_of_the_dense_modes_and_the_static_shapes(carbody, monkeypatch):
     import scipy.sparse.linalg
 
-    from calibration.models.box import reduction
+    from calibration.models.box import vehicle_reduction
     calls = {"eigsh": 0}
     eigsh = scipy.sparse.linalg.eigsh
 
@@ -245,12 +245,12 @@ def test_the_carbody_basis_is_one_eigen_solve_of_the_dense_modes_and_the_static_
         calls["eigsh"] += 1
         return eigsh(*args, **kwargs)
 
-    monkeypatch.setattr(reduction.scipy.sparse.linalg, "eigsh", counted)
+    monkeypatch.setattr(vehicle_reduction.scipy.sparse.linalg, "eigsh", counted)
     p = np.ones(len(carbody.names))
     f = _frequencies(carbody, n=80)
     cutoff = 0.5 * (f[55] + f[56])  # 56 modes below, more than the 40 once asked for first
     loads = np.random.default_rng(3).standard_normal((carbody.n_dof, 4))
-    V, omega, n_modes = reduction.carbody_basis(carbody, p, cutoff, loads)
+    V, omega, n_modes = vehicle_reduction.carbody_basis(carbody, p, cutoff, loads)
     assert calls["eigsh"] == 1 and n_modes == 56
     np.testing.assert_allclose(omega[6:n_modes] / (2 * np.pi), f[6:56], rtol=1e-9)
     K, M = carbody.stiffness(p), carbody.M

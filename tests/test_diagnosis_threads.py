@@ -59,22 +59,22 @@ def test_a_reduced_basis_gives_the_same_frequencies_whatever_basis_of_equal_mode
     that are round-off only, it gives the same frequencies to round-off."""
     import scipy.sparse.linalg
 
-    from calibration.models.box import reduced
+    from calibration.models.box import parametric_basis
 
     model = coarse_box_model
     p = np.full(len(model.names), 1.05)
     q = p * np.exp(np.random.default_rng(0).uniform(-0.03, 0.03, p.size))
-    f0 = reduced.ReducedFamily.build(model, p[None], modes_per_sample=30, size=60, derivatives=20).modes(q, 30)[0]
-    w, _ = reduced.full_modes(model, p, 34)
+    f0 = parametric_basis.ReducedFamily.build(model, p[None], modes_per_sample=30, size=60, derivatives=20).modes(q, 30)[0]
+    w, _ = parametric_basis.full_modes(model, p, 34)
     assert np.min(w[1:] / w[:-1] - 1) < 1e-9  # the model has equal pairs: the case in point
     monkeypatch.setattr(scipy.sparse.linalg, "eigsh",
                         _solver_with_other_round_off(scipy.sparse.linalg.eigsh, angle=1.2, noise=1e-13))
-    f1 = reduced.ReducedFamily.build(model, p[None], modes_per_sample=30, size=60, derivatives=20).modes(q, 30)[0]
+    f1 = parametric_basis.ReducedFamily.build(model, p[None], modes_per_sample=30, size=60, derivatives=20).modes(q, 30)[0]
     assert np.max(np.abs(f1 / f0 - 1)) < 1e-9
 
 
 def test_equal_eigenvalues_get_a_basis_that_depends_on_their_span_only():
-    from calibration.models.box.reduced import canonical_vectors
+    from calibration.models.box.parametric_basis import canonical_vectors
 
     rng = np.random.default_rng(1)
     Q = np.linalg.qr(rng.standard_normal((12, 5)))[0]

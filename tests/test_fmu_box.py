@@ -11,7 +11,7 @@ from conftest import CAR_FMU_SPEED as SPEED
 from conftest import CAR_FMU_START as START
 from fmpy.fmi2 import FMU2Slave
 
-from calibration.models.box.reduction import frf_full, frf_reduced, reduce_vehicle
+from calibration.models.box.vehicle_reduction import frf_full, frf_reduced, reduce_vehicle
 from calibration.models.box.rig import EXCITER, SENSOR_GRID
 from fmu_src.box import box_spec
 from fmu_src.build import build_fmu

@@ -15,7 +15,7 @@ import pytest
 from conftest import CAR_FMU_SPEED as SPEED
 from conftest import CAR_FMU_START as START
 
-from calibration.models.box.reduction import reduce_vehicle
+from calibration.models.box.vehicle_reduction import reduce_vehicle
 from calibration.models.simulate import ModalSimulator
 from calibration.models.box.rig import EXCITER, SENSOR_GRID
 from calibration.models.box.shinkansen import shinkansen_model

@@ -17,7 +17,7 @@ from conftest import COARSE_BOX_ORDERS
 from calibration.data.campaign import open_campaign
 from calibration.data.errors import InputError
 from calibration.models.box.fit import sensor_operator
-from calibration.models.box.reduced import full_modes
+from calibration.models.box.parametric_basis import full_modes
 from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, EffectSpec, parse_effect
 from calibration.models.box.assembly import carbody_mass
 from calibration.models.box.modal import ModalModel

@@ -4,7 +4,7 @@ than it gives (one excitation-test diagnosis: 100 s on one thread, 136 s on two)
 
 The answer does not depend on it: the reduced bases give the bogies' equal eigenvalue pairs
 canonical shapes and leave round-off-only directions out
-(:func:`calibration.models.box.reduced.canonical_vectors`), so one and two threads agree to
+(:func:`calibration.models.box.parametric_basis.canonical_vectors`), so one and two threads agree to
 2e-11 (tests/test_diagnosis_threads.py; docs/CHANGELOG.md tells how a campaign once split).
 """
 from __future__ import annotations

@@ -171,7 +171,7 @@ def box_modes(model, parameters, *, max_hz: float = BOX_MODES_MAX_HZ) -> list[Bo
     from .box.assembly import RIGID_DOFS
     from .box.fit import carbody_mass_matrix
     from .box.mode_types import MODE_TYPES, template
-    from .box.reduced import full_modes
+    from .box.parametric_basis import full_modes
     from .box.shinkansen import Geometry, floor_panel
 
     if not max_hz > 0:

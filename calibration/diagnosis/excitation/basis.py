@@ -20,7 +20,7 @@ from ...models.box import BoxModel
 from ...models.box.factor import factorise
 from ...models.box.fit import sensor_operator
 from ...models.box.modal import rigid_probe
-from ...models.box.reduced import CLUSTER_EXTRA, NEGLIGIBLE, canonical_vectors
+from ...models.box.parametric_basis import CLUSTER_EXTRA, NEGLIGIBLE, canonical_vectors
 from ...signals.modal import count_modes_below
 
 
@@ -149,7 +149,7 @@ def lowest_modes(K, M, n_modes: int, lu=None) -> tuple[np.ndarray, np.ndarray]:
     shift-invert about 0 with the factorisation ``lu`` of K (made here when not given),
     from a fixed start vector; shapes of equal eigenvalues canonical.
 
-    Not :func:`calibration.models.box.reduced.full_modes` (shifted below 0 and factorising
+    Not :func:`calibration.models.box.parametric_basis.full_modes` (shifted below 0 and factorising
     K - sigma M): a basis needs the factorisation of K itself for its static responses, and
     this reuses it."""
     lu = factorise(K) if lu is None else lu
@@ -201,8 +201,8 @@ class ReducedFRFModel:
     K_r(theta) = K0 + sum_j c_j(theta) K_j with the terms [factors..., panel parts...], and
     the damping, sensor, exciter and mode-classification rows on the same basis.
 
-    Not :class:`calibration.models.box.reduced.ReducedFamily` (the swarm's batched
-    eigen-solver over the factors alone) nor :class:`calibration.models.box.reduction.ReducedVehicle`
+    Not :class:`calibration.models.box.parametric_basis.ReducedFamily` (the swarm's batched
+    eigen-solver over the factors alone) nor :class:`calibration.models.box.vehicle_reduction.ReducedVehicle`
     (a time-domain reduction with rigid bogies): this one carries a softened panel's terms,
     static responses in its basis and what an accelerance and the truth's mode classes need.
 

@@ -35,7 +35,7 @@ import scipy.sparse as sp
 from ...signals.modal import mac_matrix
 from .assembly import BoxModel
 from .factor import factorise
-from .reduced import ReducedFamily, full_modes
+from .parametric_basis import ReducedFamily, full_modes
 
 
 #: BoxFit.min_mac: what a pairing below the MAC floor adds to its error [%] per unit of

@@ -21,7 +21,7 @@ from ..car2d import StateSpace
 from .assembly import BoxModel
 from .factor import factorise
 from .fit import sensor_operator
-from .reduced import full_modes
+from .parametric_basis import full_modes
 
 
 @dataclass(frozen=True, kw_only=True)
