@@ -43,11 +43,9 @@ from .parametric_basis import ReducedFamily, full_modes
 #: a target adds whose partner a target of larger MAC has (one mode cannot be two)
 MAC_SHORTFALL_PCT = 1000.0
 SHARED_PARTNER_PCT = 100.0
-#: BoxFit.min_carbody_share, for every target, measured or typed: a bogie mode seen faintly
-#: through the suspension has the floor pattern of the carbody mode it couples to, and MAC,
-#: blind to amplitude, rated it within 1e-3 of that mode; which of the two won was the BLAS
-#: kernel's round-off (a polish step paired a 9.97 Hz target with the bogies' 10.27 Hz pair
-#: on two threads, with the carbody mode on one).
+#: BoxFit.min_carbody_share: a partner is at least half carbody by kinetic energy, because
+#: MAC is blind to amplitude and a bogie mode seen faintly through the suspension can rate as
+#: alike as the carbody mode it couples to (docs/methods/calibration-box.md, section 6).
 MIN_CARBODY_SHARE = 0.5
 
 
