@@ -140,8 +140,8 @@ class SwarmSettings:
         if self.pso.particles // self.swarms < 2:
             raise ValueError(f"SwarmSettings: {self.swarms} swarms of {self.pso.particles} particles: each swarm "
                              "needs 2 or more")
-        if self.done_pct is not None:
-            checks.non_negative(self, "done_pct")
+        if self.done_pct is not None and not self.done_pct >= 0:  # inf: the first swarm ends the search
+            raise ValueError(f"SwarmSettings.done_pct must be >= 0 (or None), got {self.done_pct!r}")
 
 
 @dataclass(frozen=True, kw_only=True)

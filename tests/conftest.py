@@ -66,6 +66,8 @@ SLOW_FIXTURES = {
     "over_the_track": 6,  # test_reference_box.py: exudyn, railcal and the FMU over a track
     "equipment_campaign": 6,  # test_truth_excitation_effects.py: synthesised shaker campaigns
     "softening_campaign": 4,
+    "example_fmus": 40,  # test_fmu_fuzz.py: every registry model's FMU (the box's reduction included), fuzzed
+    "cli_fmus": 24,  # test_fmu_models.py: every registry model's FMU built through export-fmu, FMI 2 and 3
 }
 
 

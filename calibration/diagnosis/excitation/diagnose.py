@@ -92,7 +92,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     evidence = gather_evidence(ctx, base, held, compare_modes(ctx, base), swarm, left_out)
     alarms, notes = misfit_alarms(per_channel, evidence.unpaired, s, without_channel=left_out)
     cause, best = name_cause(hypotheses, alarms, s)
-    summary = summary_lines(cause, best, alarms, notes, evidence, hypotheses)
+    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses))
     extension_modes = None if best is None else compare_modes(ctx, fits[best.name])
     stages.update()
     stages.close()

@@ -82,7 +82,7 @@ class ExcitationDiagnosis:
 
     campaign: str
     cause: str
-    summary: list[str]
+    summary: tuple[str, ...]
     measured: MeasuredFRF
     evidence: Evidence
     baseline: BaselineRecord
