@@ -278,6 +278,6 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     assert [p.name for p in paths] == ["diag_frf.png", "diag_mac.png"] and all(p.stat().st_size for p in paths)
     data = json.loads(json.dumps(result.to_json()))
     assert data["format"] == "railcal-diagnosis/1" and data["cause"] == "unexplained"
-    assert data["evidence"]["summary"] == summary and data["extension"] is None and data["gain"] is None
+    assert data["evidence"]["summary"] == list(summary) and data["extension"] is None and data["gain"] is None
     assert data["split"]["training_runs"] == ["run_001"] and data["split"]["heldout_runs"] == ["run_002"]
     assert data["evidence"]["without_channel"]["channel"] == sensor
