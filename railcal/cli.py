@@ -98,7 +98,7 @@ def cmd_identify(args) -> int:
     campaign = campaign_of(args)
     model = model_for_campaign(campaign)
     png = Path(args.plot) if args.plot else Path(args.out).with_suffix(".png")
-    second = png.with_name(png.stem + ("_mac.png" if model.name == "box" else "_spectra.png"))
+    second = png.with_name(png.stem + model.identification_figure + ".png")
     check_outputs([args.out, png, second], inputs=[args.campaign, _truth_path(args.campaign)])
     print(model.identify(campaign, args, png, second))
     return EXIT_OK

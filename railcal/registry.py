@@ -21,6 +21,7 @@ class VehicleModel:
     campaign_kind : the campaign kind (campaign.toml ``kind``) it is calibrated from.
     identify(campaign, args, png, second) -> summary : identify a campaign, write the JSON and
         two figures.
+    identification_figure : the suffix of the second figure, written beside the first.
     modes(args) -> dict : the eigen-analysis of ``railcal modes``.
     calibrate(args) -> summary : calibrate to a campaign or to typed targets, write the file.
     validate(campaign, calibration, args) -> summary : compare the calibrated model with the
@@ -40,6 +41,7 @@ class VehicleModel:
     description: str
     campaign_kind: str
     identify: Callable
+    identification_figure: str
     modes: Callable
     calibrate: Callable
     validate: Callable
@@ -78,12 +80,14 @@ def _box_example() -> dict:
 
 MODELS: dict[str, VehicleModel] = {m.name: m for m in (
     VehicleModel(name="car2d", description="the 2D car: carbody, two bogies, four wheelsets (in-service seed)",
-                 campaign_kind="in_service", identify=car2d.identify, modes=car2d.modes, calibrate=car2d.calibrate,
+                 campaign_kind="in_service", identify=car2d.identify, identification_figure="_spectra",
+                 modes=car2d.modes, calibrate=car2d.calibrate,
                  validate=car2d.validate, diagnose=_diagnose_in_service,
                  diagnosis_figures=("_residual_psd", "_speed_map"), fmu_spec=car2d_fmu_spec,
                  crosscheck=car2d.crosscheck, crosscheck_figure=True, example_calibration=_car_example),
     VehicleModel(name="box", description="the box-type vehicle: flexible carbody on its suspension (carbody seed)",
-                 campaign_kind="stationary_excitation", identify=box.identify, modes=box.modes,
+                 campaign_kind="stationary_excitation", identify=box.identify, identification_figure="_mac",
+                 modes=box.modes,
                  calibrate=box.calibrate, validate=box.validate, diagnose=_diagnose_excitation,
                  diagnosis_figures=("_frf", "_mac"), fmu_spec=box_fmu_spec, crosscheck=box.crosscheck,
                  crosscheck_figure=False, example_calibration=_box_example),

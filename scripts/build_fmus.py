@@ -18,10 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.models.box.rig import EXCITER, SENSOR_GRID, point_record
-from calibration.models.vehicles import INTERCITY_TRAILER
-from fmu_src.export import box_fmu_spec, car2d_fmu_spec, export_fmu
+from fmu_src.export import export_fmu
 from fmu_src.reference import smooth_profile
+from railcal.registry import MODELS
 
 
 def main() -> int:
@@ -31,18 +30,18 @@ def main() -> int:
     ap.add_argument("--box-calibration", default=None)
     args = ap.parse_args()
     car = json.loads(Path(args.car_calibration).read_text()) if args.car_calibration else \
-        {"model": "car2d", "parameters": INTERCITY_TRAILER.as_dict()}
+        MODELS["car2d"].example_calibration()
     box = json.loads(Path(args.box_calibration).read_text()) if args.box_calibration else \
-        {"model": "box", "parameters": {}, "sensors": [point_record(s) for s in SENSOR_GRID],
-         "exciter": point_record(EXCITER)}
+        MODELS["box"].example_calibration()
     out = Path(args.out)
     with tempfile.TemporaryDirectory() as tmp:
         s, z, _ = smooth_profile(5000.0, seed=1)
         track = Path(tmp) / "track.csv"
         np.savetxt(track, np.column_stack([s, z]), delimiter=",", header="distance,level", comments="", fmt="%.10g")
-        for name, cal, spec_for in (("car", car, car2d_fmu_spec), ("box", box, box_fmu_spec)):
+        for name, cal in (("car", car), ("box", box)):
             for v in (2, 3):
-                built = export_fmu(cal, v, out / f"railcal_{name}_fmi{v}.fmu", spec_for=spec_for, track=track)
+                built = export_fmu(cal, v, out / f"railcal_{name}_fmi{v}.fmu", spec_for=MODELS[cal["model"]].fmu_spec,
+                                   track=track)
                 print(f"{built.path}: FMI {v}, binaries {', '.join(built.platforms)}")
     return 0
 
