@@ -18,7 +18,7 @@ from .fitting import Fitted, basis_at, extension_start, factor_bounds, fit_best
 from .frf import mount_impedance
 
 #: mass ratios (to the carbody mass) scanned: 0.5-7 %, around the effects catalogue's range
-#: of 1-5 % (:data:`calibration.truth.effects.EFFECTS`)
+#: of 1-5 % (docs/methods/truth-simulator.md: the search is set around the generator it is tested on)
 MASS_RATIOS = (0.005, 0.01, 0.02, 0.04, 0.07)
 #: mass ratios fitted: 0.2-12 %, wider than the scan so that the refinement is not stopped at it
 MASS_RANGE = (0.002, 0.12)

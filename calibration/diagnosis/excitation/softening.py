@@ -23,7 +23,7 @@ from .least_squares import least_squares, total_error
 
 #: rigidity divisors searched: from barely softer (1.2, the null end: a fit that ends there
 #: only re-adjusts the baseline) to 30, three times the top of the effects catalogue's range
-#: (3-10, :data:`calibration.truth.effects.EFFECTS`), so that the catalogue's range is inside
+#: (3-10, docs/methods/truth-simulator.md), so that the catalogue's range is inside
 DIVISOR_RANGE = (1.2, 30.0)
 #: the scan's divisors: geometric steps of about 1.5 over 1.5-17, so that every divisor in that
 #: span is within a factor 1.25 of one scanned
