@@ -375,7 +375,7 @@ def calibrate_box_campaign(campaign: Campaign, *,
                          path=campaign.root / "runs")
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
-    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    exciter = meta.exciter()
     search = box_search(campaign.meta.priors)
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")

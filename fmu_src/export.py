@@ -10,7 +10,6 @@ gives the box FMU's measurement points (box; otherwise the calibration file's).
 from __future__ import annotations
 
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +38,7 @@ def box_points(campaign) -> tuple:
         raise InputError("the campaign has no [excitation]: the box FMU's force input needs the exciter's point",
                          path=campaign.root / "campaign.toml", key="excitation")
     sensors = tuple(s for s in meta.sensors if s.quantity == "acceleration" and s.direction == "z")
-    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    exciter = meta.exciter()
     return sensors, exciter
 
 

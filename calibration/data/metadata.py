@@ -12,7 +12,7 @@ import math
 import re
 import tomllib
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping
 
@@ -174,6 +174,13 @@ class CampaignMeta:
             if s.name == name:
                 return s
         raise KeyError(f"no sensor {name!r}; have {', '.join(s.name for s in self.sensors)}")
+
+    def exciter(self) -> Sensor:
+        """The excitation's force sensor placed at the point the force acts (a stationary
+        excitation test's ``[excitation]``)."""
+        if self.excitation is None:
+            raise KeyError("the campaign has no [excitation]")
+        return replace(self.sensor(self.excitation.sensor), position=tuple(self.excitation.position))
 
     def to_toml(self) -> dict:
         d: dict = {"format": FORMAT, "kind": self.kind, "name": self.name}

@@ -14,7 +14,7 @@ Per channel over the analysis band: the frequency response assurance criterion
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,7 +53,7 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentifi
     ident = identify_excitation(campaign) if ident is None else ident
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
-    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    exciter = meta.exciter()
     if not (isinstance(calibration, dict) and {"parameters", "fit"} <= set(calibration)):
         raise InputError("not a box calibration result: it needs parameters and fit", key="--calibration")
     fit = calibration["fit"]

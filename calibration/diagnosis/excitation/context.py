@@ -3,7 +3,7 @@ FRFs of both parts, the full model's operators and the factors' bounds."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -85,7 +85,7 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
         raise InputError(f"the comparison band {settings.band} Hz holds {meas.frequency.size} spectral lines; "
                          "need at least 20", path=toml, key="sampling.rate")
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
-    exciter = replace(meta.sensor(meta.excitation.sensor), position=tuple(meta.excitation.position))
+    exciter = meta.exciter()
     try:
         ops = Operators.build(model, sensors, exciter)
     except ValueError as exc:
