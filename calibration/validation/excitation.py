@@ -71,7 +71,7 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentifi
     default = float(np.median([z for z in identified.values() if z is not None]))
     zeta = np.where(np.isfinite(zeta), zeta, np.where(np.array(modal0.kind) == "elastic", default,
                                                       modal0.damping_ratio))
-    modal = modal_model(model, params, damping=zeta, sensors=sensors, exciter=exciter)
+    modal = modal0.with_damping(zeta)
     lo, hi = ident.settings.band
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]

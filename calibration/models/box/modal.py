@@ -11,7 +11,7 @@ accelerance of this model exactly.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
@@ -75,6 +75,15 @@ class ModalModel:
     damping_matrix: np.ndarray | None = None  # (n, n) [1/s]; None: modal damping
     outputs: tuple[str, ...] = ()  # sensor names, one per row of sensor_shapes
     input: str = "exciter_force"
+
+    def with_damping(self, damping) -> "ModalModel":
+        """The same modes with these modal damping ratios (one per mode, pseudo-modes
+        last): damping does not change the undamped modes, so they are not solved again."""
+        damping = np.asarray(damping, float)
+        if damping.shape != self.damping_ratio.shape:
+            raise ValueError(f"damping has {damping.size} ratios; the model has {self.damping_ratio.size} modes "
+                             "(residual pseudo-modes included)")
+        return replace(self, damping_ratio=damping, damping_matrix=None)
 
     def _damping(self) -> np.ndarray:
         if self.damping_matrix is not None:
