@@ -1,0 +1,79 @@
+"""Hidden effects of the independent truth, parsed here (not from calibration/truth/effects.py).
+
+The catalogue's names and magnitude ranges are the diagnosis's vocabulary and are kept;
+what each one does to this truth is its own:
+
+* ``carbody_bending`` [Hz]: the carbody beam's first free-free bending at MAGNITUDE (6-12);
+* ``cog_offset`` [m]: the carbody structure's mass centre MAGNITUDE ahead or behind (0.4-1.5);
+* ``airspring_reservoir`` [-]: reservoir volume MAGNITUDE x the bag's behind a restricted
+  orifice whose transition falls at 1.5-4 Hz (drawn) (0.5-2);
+* ``sensor_offset`` [m]: the bogie accelerometer and gyro MAGNITUDE off their declared x (0.3-1.5);
+* ``track_flexibility`` [N/m]: soft ballast: track stiffness per wheelset MAGNITUDE (20e6-80e6);
+* ``wheel_out_of_round`` [m]: a polygonal wheelset (1 or 2): dominant order 1-3 of radius
+  amplitude MAGNITUDE plus three higher harmonics of 10-40 % of it (0.05e-3-0.3e-3).
+
+Near-mimics outside the catalogue (the diagnosis has no extension for them):
+
+* ``floor_sensor_offset`` [m]: each carbody floor accelerometer up to MAGNITUDE off its declared x;
+* ``rigid_equipment`` [kg]: a mass of MAGNITUDE bolted rigidly to the floor at a drawn x;
+* ``load_variation`` [-]: the journeys' payload differs by up to +-MAGNITUDE x the carbody mass;
+
+and any two of the above joined by ``+`` (``cog_offset=0.8+carbody_bending=8``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ...data.errors import InputError
+
+
+@dataclass(frozen=True)
+class HiddenEffect:
+    name: str
+    magnitude: float
+    unit: str
+    catalogued: bool
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "magnitude": self.magnitude, "unit": self.unit, "catalogued": self.catalogued}
+
+
+RANGES = {  # name: (low, high, default, unit, catalogued)
+    "carbody_bending": (6.0, 12.0, 8.0, "Hz", True),
+    "cog_offset": (0.4, 1.5, 0.8, "m", True),
+    "airspring_reservoir": (0.5, 2.0, 1.0, "-", True),
+    "sensor_offset": (0.3, 1.5, 0.8, "m", True),
+    "track_flexibility": (20.0e6, 80.0e6, 40.0e6, "N/m", True),
+    "wheel_out_of_round": (0.05e-3, 0.3e-3, 0.15e-3, "m", True),
+    "floor_sensor_offset": (0.3, 1.5, 0.8, "m", False),
+    "rigid_equipment": (300.0, 1000.0, 700.0, "kg", False),
+    "load_variation": (0.05, 0.2, 0.12, "-", False),
+}
+
+
+def parse_hidden(text: str | None) -> tuple[HiddenEffect, ...]:
+    """``NAME[=MAGNITUDE][+NAME[=MAGNITUDE]]``; InputError naming what is wrong."""
+    if text is None or text == "":
+        return ()
+    out = []
+    for part in text.split("+"):
+        name, _, mag = part.partition("=")
+        name = name.strip()
+        if name not in RANGES:
+            raise InputError(f"unknown effect {name!r} for the independent truth; available: {', '.join(RANGES)}",
+                             key="--effect")
+        lo, hi, default, unit, cat = RANGES[name]
+        if mag:
+            try:
+                value = float(mag)
+            except ValueError:
+                raise InputError(f"magnitude {mag!r} of effect {name} is not a number", key="--effect") from None
+            if not lo <= value <= hi:
+                raise InputError(f"magnitude {value} {unit} of effect {name} outside its range [{lo}, {hi}]",
+                                 key="--effect")
+        else:
+            value = default
+        out.append(HiddenEffect(name, value, unit, cat))
+    if len(out) > 2 or len({e.name for e in out}) < len(out):
+        raise InputError(f"at most two different effects may be combined, got {text!r}", key="--effect")
+    return tuple(out)

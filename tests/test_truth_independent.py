@@ -1,0 +1,189 @@
+"""The independent exudyn truth (calibration/truth/independent): physics of its parts,
+its vehicle library against the seed's Table 2, the campaign it writes, and that it
+borrows no model-building code from railcal."""
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calibration.data.campaign import open_campaign
+from calibration.data.errors import InputError
+from calibration.truth.independent import IndependentSettings, parse_hidden, synth_in_service_independent
+from calibration.truth.independent import components as comp
+from calibration.truth.independent.irregularity import LineSpec
+from calibration.truth.independent.model import build_car, free_beam_frequencies
+from calibration.truth.independent.parameters import car_parameters
+from calibration.truth.independent.sensors import decimate
+from calibration.truth.independent.simulate import linearise, settle
+from calibration.truth.independent.vehicles import INTERCITY, VEHICLES
+
+PACKAGE = Path(__file__).resolve().parents[1] / "calibration" / "truth" / "independent"
+FORBIDDEN = ("calibration.models", "calibration.diagnosis", "calibration.identification", "calibration.signals",
+             "calibration.calibrate", "reference_models", "fmu_src", "calibration.truth.in_service",
+             "calibration.truth.track", "calibration.truth.effects", "calibration.truth.excitation")
+
+
+def test_fe_beam_first_bending_matches_the_closed_form():
+    L, mu = 23.0, 1_500.0
+    EI = comp.bending_stiffness_for(10.0, mu, L)
+    f = free_beam_frequencies(np.linspace(-L / 2, L / 2, 11), np.full(10, mu), EI, count=2)
+    assert f[0] == pytest.approx(comp.free_free_bending_hz(EI, mu, L), rel=0.01)
+    # the second free-free mode, (beta L)^2 = 61.673, within the 10-element mesh's error
+    assert f[1] == pytest.approx(61.673 / 22.373 * f[0], rel=0.05)
+
+
+def test_air_spring_stiffens_with_compression_and_load():
+    area, n, volume = 0.3, 1.3, 0.12
+    z = np.linspace(-0.03, 0.03, 7)
+    light, heavy = comp.levelled_pressure(150e3, area), comp.levelled_pressure(210e3, area)
+    k = comp.gas_stiffness(z, light, volume, area, n)
+    assert np.all(np.diff(k) > 0)
+    assert np.all(comp.gas_stiffness(z, heavy, volume, area, n) > k)
+    # force = gauge pressure x area: the levelled spring carries its load at nominal height
+    assert comp.gas_force(0.0, light, volume, area, n) == pytest.approx(150e3)
+    # stiffness is the force's derivative
+    dz = 1e-6
+    num = (comp.gas_force(dz, heavy, volume, area, n) - comp.gas_force(-dz, heavy, volume, area, n)) / (2 * dz)
+    assert num == pytest.approx(comp.gas_stiffness(0.0, heavy, volume, area, n), rel=1e-6)
+
+
+def _ride_heights(payload_fill: float, centre: float) -> np.ndarray:
+    payload = {p.name: p.capacity * payload_fill for p in INTERCITY.payloads}
+    p = car_parameters(INTERCITY, payload=payload, payload_centre=centre)
+    m = build_car(p)
+    q = settle(m)
+    out = []
+    for ib, xb in enumerate((p.L_v, -p.L_v)):
+        beam = m.beam_nodes[int(np.argmin(np.abs(np.asarray(p.x_nodes) - xb)))]
+        out.append(q[m.mbs.GetNodeODE2Index(beam) + 1] - q[m.mbs.GetNodeODE2Index(m.bogie_nodes[ib]) + 1])
+    return np.array(out)
+
+
+def test_levelling_valve_holds_ride_height_for_two_loads():
+    empty, full = _ride_heights(0.0, 0.0), _ride_heights(1.0, 1.5)
+    assert np.all(np.abs(empty) < 1e-3) and np.all(np.abs(full) < 1e-3)
+
+
+def test_bilinear_damper_force_below_and_above_knee():
+    c1, c2, knee = 29_400.0, 0.3 * 29_400.0, 0.08
+    assert comp.bilinear_damper_force(0.05, c1, c2, knee) == pytest.approx(c1 * 0.05)
+    assert comp.bilinear_damper_force(-0.05, c1, c2, knee) == pytest.approx(-c1 * 0.05)
+    assert comp.bilinear_damper_force(0.2, c1, c2, knee) == pytest.approx(c1 * knee + c2 * 0.12)
+    # above the knee the slope is the lower coefficient
+    f = comp.bilinear_damper_force(np.array([0.15, 0.25]), c1, c2, knee)
+    assert (f[1] - f[0]) / 0.1 == pytest.approx(c2)
+
+
+def test_track_receptance_peaks_at_its_two_resonances():
+    t = car_parameters(INTERCITY).track
+    low, high = comp.track_resonances_hz(t.m_r, t.k_pad, t.m_s, t.k_b)
+    assert 40 < low < 150 and 250 < high < 1_000  # sleeper on ballast; rail on pad
+    f = np.linspace(10, 1_500, 30_000)
+    mag = np.abs(comp.track_receptance(f, t.m_r, t.k_pad, 0.02 * t.c_pad, t.m_s, t.k_b, 0.02 * t.c_b))
+    peaks = f[1:-1][(mag[1:-1] > mag[:-2]) & (mag[1:-1] > mag[2:])]
+    assert len(peaks) == 2
+    assert peaks == pytest.approx([low, high], rel=0.01)
+    # static receptance: pad and ballast in series
+    assert abs(comp.track_receptance(0.0, t.m_r, t.k_pad, t.c_pad, t.m_s, t.k_b, t.c_b)) == pytest.approx(
+        1 / t.k_pad + 1 / t.k_b)
+
+
+def test_anti_alias_chain_attenuates_a_tone_above_nyquist():
+    fs_in, fs_out = 1_000.0, 500.0
+    t = np.arange(20_000) / fs_in
+    for f_tone, passes in ((320.0, False), (40.0, True)):
+        y = decimate(np.sin(2 * np.pi * f_tone * t), fs_in, fs_out)[500:]
+        rms = np.sqrt(np.mean(y ** 2))
+        if passes:
+            assert rms == pytest.approx(np.sqrt(0.5), rel=0.02)
+        else:
+            assert 20 * np.log10(rms / np.sqrt(0.5)) < -40
+
+
+@pytest.mark.parametrize("name", [n for n, v in VEHICLES.items() if v.table2])
+def test_library_rigid_frequencies_reproduce_table2(name):
+    spec = VEHICLES[name]
+    m = build_car(car_parameters(spec), stiff_carbody=True, rigid_track=True)
+    settle(m)
+    f = {k: v[0] for k, v in linearise(m).by_label().items()}
+    for label, ref in spec.table2.items():
+        assert f[label] == pytest.approx(ref, rel=spec.table2_tolerance), label
+
+
+def _read_back(out: Path, meta_sensors: int):
+    c = open_campaign(out)
+    assert len(c.meta.sensors) == meta_sensors
+    for run in c.iter_runs():
+        for name in (s.name for s in c.meta.sensors):
+            assert np.all(np.isfinite(run.channels[name])), name
+        assert np.all(np.diff(run.time) > 0)
+    assert c.tracks()[0].band == "D1"
+    return c
+
+
+def test_small_campaign_is_read_back_by_railcal(tmp_path):
+    settings = IndependentSettings(journeys=1, line=LineSpec(length=1_500.0), speed_range=(40.0, 45.0))
+    truth = synth_in_service_independent(tmp_path / "c", seed=3, settings=settings)
+    c = _read_back(tmp_path / "c", 6)
+    run = next(c.iter_runs())
+    # the bogie accelerometer reads about 1 g at rest, in SI after the reader's conversion
+    assert np.mean(run.channels["bogie1_acc_z"]) == pytest.approx(9.81, rel=0.05)
+    assert (tmp_path / "c.truth.json").is_file() and not (tmp_path / "c" / "c.truth.json").exists()
+    f = truth["frequencies_hz"]
+    assert f["carbody_bounce"] < f["carbody_pitch"] < f["bogie_bounce"]
+
+
+@pytest.mark.slow(seconds=25)
+def test_campaign_with_two_effects_and_floor_sensors(tmp_path):
+    settings = IndependentSettings(journeys=2, line=LineSpec(length=5_000.0), carbody_sensors=True,
+                                   speed_range=(40.0, 45.0))
+    effects = parse_hidden("cog_offset=0.8+carbody_bending=8")
+    truth = synth_in_service_independent(tmp_path / "c", seed=4, settings=settings, effect=effects)
+    _read_back(tmp_path / "c", 9)
+    assert [e["name"] for e in truth["effect"]] == ["cog_offset", "carbody_bending"]
+    # the soft carbody's bending is lower than the clean car's, recorded with the truth
+    assert truth["performance"]["real_time_factor"] > 1
+
+
+def test_effect_and_settings_errors_name_the_problem():
+    with pytest.raises(InputError, match="unknown effect 'bending'"):
+        parse_hidden("bending=8")
+    with pytest.raises(InputError, match="outside its range"):
+        parse_hidden("cog_offset=5")
+    with pytest.raises(ValueError, match="sim_rate 750.0 Hz must be a whole multiple"):
+        IndependentSettings(sim_rate=750.0)
+
+
+def _imports(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: resolve against the package calibration.truth.independent
+                base = ["calibration", "truth", "independent"][:3 - (node.level - 1)]
+                names.add(".".join(base + ([node.module] if node.module else [])))
+            else:
+                names.add(node.module)
+    return names
+
+
+def test_package_imports_no_railcal_model_code():
+    files = sorted(PACKAGE.glob("*.py"))
+    assert files
+    for f in files:
+        for name in _imports(f):
+            assert not any(name == b or name.startswith(b + ".") or name.startswith(b + "_") for b in FORBIDDEN), \
+                f"{f.name} imports {name}"
+        assert len(f.read_text().splitlines()) <= 600, f.name
+
+
+def test_lint_imports_keeps_the_independence_contract():
+    exe = Path(sys.executable).with_name("lint-imports")
+    r = subprocess.run([str(exe)], cwd=PACKAGE.parents[2], capture_output=True, text=True, timeout=300)
+    assert "shares no model-building code with railcal KEPT" in r.stdout, r.stdout[-2000:]
