@@ -251,6 +251,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--length-km", type=float, default=40.0, help="length of the line [km]")
     s.add_argument("--carbody-sensors", action="store_true",
                    help="add floor accelerometers above both bogies and at the car centre")
+    s.add_argument("--truth", choices=("railcal", "exudyn"), default="railcal",
+                   help="the simulator: railcal's own 2D car (default) or the independent exudyn truth "
+                        "(flexible carbody, nonlinear suspension, discretely supported track)")
+    s.add_argument("--vehicle", default=None, help="vehicle of the exudyn truth's library (intercity, "
+                   "manchester; default intercity); --truth exudyn only")
     s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")

@@ -13,11 +13,15 @@ def cmd_synth_in_service(args) -> int:
     from calibration.truth.in_service import InServiceSettings, synth_in_service
     from calibration.truth.track import LineSpec
 
-    effect = parse_effect(args.effect, "in_service")
     if args.journeys < 1:
         raise InputError(f"--journeys must be >= 1, got {args.journeys}", key="--journeys")
     if not 5.0 <= args.length_km <= 500.0:
         raise InputError(f"--length-km must be within 5..500 km, got {args.length_km}", key="--length-km")
+    if getattr(args, "truth", "railcal") == "exudyn":
+        return _synth_in_service_exudyn(args)
+    if args.vehicle is not None:
+        raise InputError("--vehicle chooses a vehicle of the exudyn truth; give --truth exudyn", key="--vehicle")
+    effect = parse_effect(args.effect, "in_service")
     check_campaign_output(args.out, overwrite=args.force)
     settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
                                  carbody_sensors=args.carbody_sensors)
@@ -26,6 +30,29 @@ def cmd_synth_in_service(args) -> int:
     f = truth["frequencies_hz"]
     print(f"wrote {args.out} ({args.journeys} journeys x {args.length_km:g} km) and {args.out}.truth.json; "
           + ", ".join(f"{k} {v:.3f} Hz" for k, v in f.items()))
+    return EXIT_OK
+
+
+def _synth_in_service_exudyn(args) -> int:
+    """``synth in-service --truth exudyn``: the independent exudyn truth."""
+    from calibration.truth.independent import VEHICLES, IndependentSettings, parse_hidden, \
+        synth_in_service_independent
+    from calibration.truth.independent.irregularity import LineSpec
+
+    name = args.vehicle or "intercity"
+    if name not in VEHICLES:
+        raise InputError(f"unknown vehicle {name!r}; the exudyn truth's library has {', '.join(VEHICLES)}",
+                         key="--vehicle")
+    effect = parse_hidden(args.effect)
+    check_campaign_output(args.out, overwrite=args.force)
+    settings = IndependentSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
+                                   carbody_sensors=args.carbody_sensors)
+    truth = synth_in_service_independent(args.out, seed=args.seed, settings=settings, effect=effect, vehicle=name,
+                                         fmt=args.format, overwrite=args.force, progress=progress_for(args))
+    f = truth["frequencies_hz"]
+    print(f"wrote {args.out} ({args.journeys} journeys x {args.length_km:g} km, exudyn truth, {name}) and "
+          f"{args.out}.truth.json; " + ", ".join(f"{k} {v:.3f} Hz" for k, v in f.items())
+          + f"; real-time factor {truth['performance']['real_time_factor']:.1f}")
     return EXIT_OK
 
 
