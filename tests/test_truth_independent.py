@@ -146,8 +146,9 @@ def test_campaign_with_two_effects_and_floor_sensors(tmp_path):
     truth = synth_in_service_independent(tmp_path / "c", seed=4, settings=settings, effect=effects)
     _read_back(tmp_path / "c", 9)
     assert [e["name"] for e in truth["effect"]] == ["cog_offset", "carbody_bending"]
-    # the soft carbody's bending is lower than the clean car's, recorded with the truth
-    assert truth["performance"]["real_time_factor"] > 1
+    assert abs(truth["effect"][0]["details"]["structure_centre_x_m"]) == pytest.approx(0.8)
+    # the clean car's modes are reported, not the effect's: its bending stays above the effect's band
+    assert truth["frequencies_hz"]["carbody_bending"] > 12.0
 
 
 def test_effect_and_settings_errors_name_the_problem():

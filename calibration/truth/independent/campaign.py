@@ -23,7 +23,8 @@ from .model import build_car
 from .parameters import CarParameters, TrackParameters, car_parameters
 from .sensors import G, accelerometer, decimate, hermite, ou, quantise
 from .simulate import linearise, run_in, settle, simulate
-from .vehicles import VehicleSpec, vehicle
+from .vehicles import VehicleSpec
+from .vehicles import vehicle as library_vehicle
 
 TRUTH_FORMAT = "railcal-truth/1"
 AXLE_BOX_Y, SENSOR_HEIGHT, FLOOR_HEIGHT = 1.0, 0.7, 1.2  # [m]
@@ -259,13 +260,13 @@ def _journey(p: CarParameters, line: Line, s: IndependentSettings, sensors, fx: 
 
 
 def synth_in_service_independent(out, *, seed: int = 0, settings: IndependentSettings = IndependentSettings(),
-                                 effect: tuple[HiddenEffect, ...] = (), vehicle: str = "intercity",
+                                 effect: tuple[HiddenEffect, ...] = (), vehicle: str | VehicleSpec = "intercity",
                                  fmt: str = "csv", overwrite: bool = False, progress=None) -> dict:
     """Write an in-service campaign simulated by the independent exudyn truth to ``out`` and
     its truth to ``out.truth.json``; returns the truth."""
     import time
     out = Path(out)
-    spec = globals()["vehicle"](vehicle) if isinstance(vehicle, str) else vehicle
+    spec = library_vehicle(vehicle) if isinstance(vehicle, str) else vehicle
     s = settings
     rng = np.random.default_rng(seed)
     fx = _Effects(tuple(effect), spec, np.random.default_rng([seed, 7]))
