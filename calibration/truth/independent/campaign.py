@@ -217,7 +217,7 @@ def _journey(p: CarParameters, line: Line, s: IndependentSettings, sensors, fx: 
             c = line.cross_level(dist + m.wheel_x[j])
             dc = np.gradient(c, dist, edge_order=1)
             roll_acc = side * x.position[1] / GAUGE * (v ** 2 * np.gradient(dc, dist) + a_x * dc)
-            a_z = out[f"axle{j + 1}"][2][:, 1] + 0.5 * roll_acc
+            a_z = out[f"axle{j + 1}"][2][:, 1] + roll_acc
             raw[x.name] = accelerometer(a_z, a_x, 0.0, inst["tilt"][x.name]) / G
         elif x.name == "bogie1_acc_z":
             q, _, acc = out["bogie1"]
