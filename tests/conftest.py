@@ -84,6 +84,27 @@ def _cost(item) -> float:
     return 20.0 if mark is not None else 0.2
 
 
+#: the session fixtures of :data:`SLOW_FIXTURES`: the files using one are one group, so that
+#: one worker builds it once (each xdist worker has its own session)
+SESSION_SLOW_FIXTURES = ("synthetic_campaign", "car_fmus")
+
+
+def _files_sharing_session_fixtures(items) -> dict[str, str]:
+    """file -> the group of the files that use the same :data:`SESSION_SLOW_FIXTURES`
+    fixture, named by its first file (files joined transitively)."""
+    users: dict[str, set[str]] = {}
+    for item in items:
+        for name in SESSION_SLOW_FIXTURES:
+            if name in getattr(item, "fixturenames", ()):
+                users.setdefault(name, set()).add(item.nodeid.split("::")[0])
+    group: dict[str, str] = {}
+    for files in users.values():
+        joined = set(files) | {f2 for f in files if f in group for f2, g in group.items() if g == group[f]}
+        name = min(joined)
+        group.update({f: name for f in joined})
+    return group
+
+
 def pytest_collection_modifyitems(config, items):
     """Groups for pytest-xdist's ``--dist loadgroup`` (``make test``): every test file runs on
     one worker, so its module and session fixtures are built once, except tests marked
@@ -93,10 +114,12 @@ def pytest_collection_modifyitems(config, items):
     ``--no-loadscope-reorder``): the workers hand out groups in order, and a two-minute test
     left to the end ran alone while the other worker idled."""
     group_of, cost = {}, {}
+    file_group = _files_sharing_session_fixtures(items)
     for item in items:
         if SLOW_FIXTURES.keys() & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
-        group = item.nodeid if item.get_closest_marker("spread") else item.nodeid.split("::")[0]
+        path = item.nodeid.split("::")[0]
+        group = item.nodeid if item.get_closest_marker("spread") else file_group.get(path, path)
         item.add_marker(pytest.mark.xdist_group(group))
         group_of[item.nodeid] = group
         cost[group] = cost.get(group, 0.0) + _cost(item)
