@@ -105,14 +105,40 @@ def test_anti_alias_chain_attenuates_a_tone_above_nyquist():
             assert 20 * np.log10(rms / np.sqrt(0.5)) < -40
 
 
+# seed Table 2 [Hz] (carbody bounce, pitch, bogie bounce, pitch), written here from the seed independently
+# of the library's entries
+TABLE2 = {"manchester": (1.07, 1.28, 7.47, 11.68), "pioneer_r": (0.63, 0.72, 4.57, 5.71),
+          "pioneer_m": (0.69, 1.24, 3.94, 3.38), "eurostar_power_car": (1.36, 2.07, 8.55, 12.50)}
+MODES = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
+
+
 @pytest.mark.parametrize("name", [n for n, v in VEHICLES.items() if v.table2])
 def test_library_rigid_frequencies_reproduce_table2(name):
     spec = VEHICLES[name]
+    assert spec.table2 == dict(zip(MODES, TABLE2[name]))
     m = build_car(car_parameters(spec), stiff_carbody=True, rigid_track=True)
     settle(m)
     f = {k: v[0] for k, v in linearise(m).by_label().items()}
     for label, ref in spec.table2.items():
-        assert f[label] == pytest.approx(ref, rel=spec.table2_tolerance), label
+        if label in spec.table2_differs:
+            # a recorded difference: the library's value is held, and it still differs from Table 2
+            own, why = spec.table2_differs[label]
+            assert why and f[label] == pytest.approx(own, rel=0.005), label
+            assert abs(f[label] / ref - 1) > spec.table2_tolerance, f"{label} now agrees with Table 2"
+        else:
+            assert f[label] == pytest.approx(ref, rel=spec.table2_tolerance), label
+
+
+@pytest.mark.parametrize("name", ["pioneer_r", "pioneer_m"])
+def test_table2_pioneer_values_are_one_dof_estimates_of_the_same_parameters(name):
+    # the reason recorded for the Pioneer cars' differences: Table 2's values are the one-DOF
+    # frequencies of the library's own parameters (carbody on the secondary springs alone, bogie
+    # on the primary springs alone), so the parameters are Table 2's and only the model differs
+    s = VEHICLES[name]
+    w = 2 * np.pi
+    one_dof = (np.sqrt(2 * s.k_s / s.m_structure) / w, np.sqrt(2 * s.k_s * s.L_v ** 2 / s.J_v) / w,
+               np.sqrt(2 * s.k_p / s.m_b[0]) / w, np.sqrt(2 * s.k_p * s.L_b ** 2 / s.J_b) / w)
+    assert one_dof == pytest.approx(TABLE2[name], rel=0.01)
 
 
 def _read_back(out: Path, meta_sensors: int):

@@ -1,15 +1,20 @@
 """The independent truth's vehicle library, each vehicle with its sources.
 
 Numbers are the 2D model's: stiffness and damping per wheelset (primary) and per bogie
-(secondary), lengths from the carbody centre. Every vehicle carries the seed's Table 2
-frequencies where Table 2 lists it *from the same source*; a test checks the library's
-rigid-body frequencies (stiff carbody, wheelsets on a rigid rail) against them.
+(secondary), lengths from the carbody centre. Every vehicle of the seed's Table 2 that is
+here carries Table 2's frequencies; a test checks the library's rigid-body frequencies
+(stiff carbody, wheelsets on a rigid rail) against them, within 3 %, except for the modes
+listed in ``table2_differs`` with the library's own value and the reason for the difference.
 
-Vehicles of the seed's Table 2 that are left out: ETR500Y (Liu et al. 2009), ICE2
-(Domenech et al. 2014), Shinkansen and TGV (Lin et al. 2005), Eurostar (Kouroussis et al.
-2011), Pioneer (Antolin et al. 2013), Diana et al. (2002). Their 2D parameter sets were not
-found in the references available here, and inventing them would make a frequency check
-against Table 2 meaningless.
+Looked for and not found (so left out; inventing them would make the Table 2 check
+meaningless): ETR500Y locomotive and coach (Liu et al. 2009), ICE2 locomotive and coach
+(Domenech et al. 2014, Engineering Structures; no table of theirs was reachable here),
+Shinkansen and TGV (Lin et al. 2005), Diana et al. (2002), and Kouroussis et al.'s (2011)
+Eurostar (the Eurostar power car here is Domenech's thesis set instead). A Shinkansen set of
+Wu and Yang (Engineering Structures 25, 2003) was found in TTB-2D but is not Table 2's (Lin et
+al.'s): its one-degree-of-freedom bogie bounce and pitch, 4.4 and 4.9 Hz, are far from Table
+2's 6.62 and 8.27 Hz. The Eurostar trailer cars of TTB-2D (articulated, carbody centre of mass off
+centre) do not fit this library's symmetric two-bogie car and are not in Table 2.
 """
 from __future__ import annotations
 
@@ -81,8 +86,11 @@ class VehicleSpec:
     wheel_radius: float = 0.42
     equipment: tuple[Equipment, ...] = ()
     payloads: tuple[Payload, ...] = ()
-    table2: dict = field(default_factory=dict)  # seed Table 2 [Hz] when Table 2 cites the same source
+    table2: dict = field(default_factory=dict)  # seed Table 2 [Hz] (its source named in ``reference``)
     table2_tolerance: float = 0.03
+    # modes whose Table 2 value the library does not reproduce: label -> (the library's rigid-body
+    # frequency [Hz], why it differs); the test holds the library to that value, not to Table 2
+    table2_differs: dict = field(default_factory=dict)
 
     def __post_init__(self):
         checks.positive(self, "length", "m_structure", "J_v", "bending_hz", "J_b", "m_w", "k_p", "k_s", "L_v",
@@ -143,7 +151,72 @@ MANCHESTER = VehicleSpec(
     table2={"carbody_bounce": 1.07, "carbody_pitch": 1.28, "bogie_bounce": 7.47, "bogie_pitch": 11.68},
 )
 
-VEHICLES: dict[str, VehicleSpec] = {v.name: v for v in (INTERCITY, MANCHESTER)}
+_ONE_DOF = ("Table 2's value is the one-degree-of-freedom estimate from the same parameters (carbody on the "
+            "secondary springs alone, bogie bounce on the primary springs alone; within 1 %, see the test); the "
+            "library's coupled model has primary and secondary in series and the bogies on both")
+_TTB2D = "as tabulated in Cantero's TTB-2D (github.com/DanielCanteroNTNU/TTB-2D, "
+
+PIONEER_R = VehicleSpec(
+    name="pioneer_r",
+    reference="Antolin, Zhang, Goicolea, Xia, Astiz, Oliva, Consideration of nonlinear wheel-rail contact forces "
+              "for dynamic vehicle-bridge interaction in high-speed railways, J. Sound Vib. 332 (2013) 1231-1251: "
+              "the Pioneer R car, " + _TTB2D + "TrainProp_Pioneer_R_vehicle.m): carbody 44 000 kg and "
+              "2.74e6 kg m^2, bogie 1 700 kg and 1 700 kg m^2, wheelset 1 900 kg, primary 700 kN/m and 38 kN s/m "
+              "per wheelset, secondary 350 kN/m and 40 kN s/m per bogie, bogie centres 2 x 9 m, wheelbase 2.5 m",
+    notes="Assumed (not in the source): 26 m carbody (the beam's pitch inertia comes within 0.5 % of J_v), first "
+          "bending 14 Hz, wheel radius the library default; no equipment or payload.",
+    length=26.0, m_structure=44_000.0, J_v=2.74e6, bending_hz=14.0,
+    m_b=(1_700.0, 1_700.0), J_b=1_700.0, m_w=1_900.0,
+    # the file's values are per wheelset and per bogie already (no 3D-to-2D doubling noted): taken as they are
+    k_p=700.0e3, c_p=38.0e3, k_s=350.0e3, c_s=40.0e3, L_v=9.0, L_b=1.25,
+    table2={"carbody_bounce": 0.63, "carbody_pitch": 0.72, "bogie_bounce": 4.57, "bogie_pitch": 5.71},
+    table2_differs={"carbody_bounce": (0.567, _ONE_DOF), "carbody_pitch": (0.647, _ONE_DOF),
+                    "bogie_bounce": (5.111, _ONE_DOF)},
+)
+
+PIONEER_M = VehicleSpec(
+    name="pioneer_m",
+    reference="Antolin et al., J. Sound Vib. 332 (2013) 1231-1251 (as pioneer_r): the Pioneer M car, "
+              + _TTB2D + "TrainProp_Pioneer_M_vehicle.m): carbody 42 400 kg and 1.0644e6 kg m^2, bogie 3 400 kg "
+              "and 7 200 kg m^2, wheelset 2 200 kg, primary 1 040 kN/m and 30 kN s/m per wheelset, secondary "
+              "400 kN/m and 33 kN s/m per bogie, bogie centres 2 x 9 m, wheelbase 2.5 m",
+    notes="Assumed (not in the source): 21 m carbody (a non-negative mass distribution reaches this small J_v only "
+          "up to 22.4 m; the 10-element beam's pitch inertia is 2.7 % above J_v), first bending 14 Hz, wheel "
+          "radius the library default; no equipment or payload.",
+    length=21.0, m_structure=42_400.0, J_v=1.0644e6, bending_hz=14.0,
+    m_b=(3_400.0, 3_400.0), J_b=7_200.0, m_w=2_200.0,
+    # per wheelset and per bogie as in the file (no doubling)
+    k_p=1_040.0e3, c_p=30.0e3, k_s=400.0e3, c_s=33.0e3, L_v=9.0, L_b=1.25,
+    table2={"carbody_bounce": 0.69, "carbody_pitch": 1.24, "bogie_bounce": 3.94, "bogie_pitch": 3.38},
+    table2_differs={"carbody_bounce": (0.632, _ONE_DOF), "carbody_pitch": (1.109, _ONE_DOF),
+                    "bogie_bounce": (4.306, _ONE_DOF)},
+)
+
+EUROSTAR_POWER_CAR = VehicleSpec(
+    name="eurostar_power_car",
+    reference="Domenech Monforte, Influencia del modelo de vehiculo en la prediccion del comportamiento a flexion "
+              "de puentes isostaticos de ferrocarril para trafico de alta velocidad, PhD thesis, Universitat "
+              "Politecnica de Valencia (2014), doi:10.4995/Thesis/10251/36740: the Eurostar power car, " + _TTB2D
+              + "TrainProp_Eurostar_Locomotive.m): carbody 51 500 kg and 1.05e6 kg m^2, bogie 2 200 kg and "
+              "1 900 kg m^2, wheelset 1 700 kg, primary 2 600 kN/m and 12 kN s/m per wheelset, secondary "
+              "3 260 kN/m and 90 kN s/m per bogie, bogie centres 14 m, wheelbase 3 m. Seed Table 2 cites "
+              "Kouroussis et al. (2011) for its Eurostar: another source, whose parameters were not available here",
+    notes="Assumed (not in the source): 19 m carbody (a non-negative mass distribution reaches J_v only up to "
+          "20.2 m, the real power car being 22.15 m long; the 10-element beam's pitch inertia is 3.5 % above "
+          "J_v), first bending 14 Hz, wheel radius the library default; no equipment or payload.",
+    length=19.0, m_structure=51_500.0, J_v=1.05e6, bending_hz=14.0,
+    m_b=(2_200.0, 2_200.0), J_b=1_900.0, m_w=1_700.0,
+    # per wheelset and per bogie as in the file (no doubling)
+    k_p=2_600.0e3, c_p=12.0e3, k_s=3_260.0e3, c_s=90.0e3, L_v=7.0, L_b=1.5,
+    table2={"carbody_bounce": 1.36, "carbody_pitch": 2.07, "bogie_bounce": 8.55, "bogie_pitch": 12.50},
+    table2_differs={"bogie_bounce": (9.929, "Table 2 takes its Eurostar from Kouroussis et al. (2011), not from "
+                                           "this source; the other three modes agree within 2.6 %, so the sets "
+                                           "are close, but whether Kouroussis' bogie or primary values or the "
+                                           "model behind Table 2 make the 16 % could not be checked")},
+)
+
+VEHICLES: dict[str, VehicleSpec] = {v.name: v for v in (INTERCITY, MANCHESTER, PIONEER_R, PIONEER_M,
+                                                         EUROSTAR_POWER_CAR)}
 
 
 def vehicle(name: str) -> VehicleSpec:
