@@ -10,6 +10,7 @@ import argparse
 import os
 import sys
 import traceback
+from contextlib import nullcontext
 from pathlib import Path
 
 from calibration.data.errors import InputError
@@ -155,8 +156,13 @@ def cmd_diagnose(args) -> int:
     out_path = Path(args.out)
     stem = out_path.with_suffix("")
     figures = [stem.with_name(stem.name + suffix + ".png") for suffix in model.diagnosis_figures]
-    check_outputs([out_path, *figures], inputs=[args.campaign])
-    diagnosis = model.diagnose(campaign, progress_for(args))
+    path = Path(args.calibration) if args.calibration else None
+    check_outputs([out_path, *figures], inputs=[args.campaign, *([path] if path else [])])
+    calibration = None if path is None else read_calibration(path)
+    if calibration is not None:
+        _model_for(campaign, calibration, path)
+    with about_calibration(path) if path else nullcontext():
+        diagnosis = model.diagnose(campaign, progress_for(args), calibration, path)
     plots = [str(p) for p in diagnosis.plot(stem)]
     write_result(out_path, {**diagnosis.to_json(), "plots": plots}, "diagnosis")
     if not args.quiet:  # the evidence in full; the summary line stays one line
@@ -254,8 +260,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--truth", choices=("railcal", "exudyn"), default="railcal",
                    help="the simulator: railcal's own 2D car (default) or the independent exudyn truth "
                         "(flexible carbody, nonlinear suspension, discretely supported track)")
-    s.add_argument("--vehicle", default=None, help="vehicle of the exudyn truth's library (intercity, "
-                   "manchester; default intercity); --truth exudyn only")
+    s.add_argument("--vehicle", default=None, help="vehicle of the exudyn truth's library (default intercity; "
+                   "the library and its sources: docs/methods/truth-independent.md); --truth exudyn only")
     s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")
@@ -322,6 +328,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("diagnose", help="find what the model gets wrong on a campaign, name the cause, "
                        "extend the model and measure the gain")
     s.add_argument("campaign", help="campaign folder")
+    s.add_argument("--calibration", help="JSON from railcal calibrate: the baseline the diagnosis starts from "
+                   "(default: the campaign's priors; a campaign without priors needs it)")
     s.add_argument("--out", required=True, help="JSON to write (plots go beside it)")
     _finish(s, cmd_diagnose, reads_campaign=True)
 

@@ -26,8 +26,9 @@ class VehicleModel:
     calibrate(args) -> summary : calibrate to a campaign or to typed targets, write the file.
     validate(campaign, calibration, args) -> summary : compare the calibrated model with the
         campaign, write the JSON and its figure.
-    diagnose(campaign, progress) -> diagnosis : what the model gets wrong (a result object
-        with ``cause``, ``summary``, ``to_json()`` and ``plot(stem)``).
+    diagnose(campaign, progress, calibration=None, calibration_path=None) -> diagnosis : what
+        the model gets wrong, from the user's calibration when given (a result object with
+        ``cause``, ``summary``, ``to_json()`` and ``plot(stem)``).
     diagnosis_figures : the suffixes of the figures ``plot`` writes beside the JSON.
     fmu_spec(calibration, track=, campaign=, cutoff_hz=) -> ModelSpec : the FMU's description.
     crosscheck(calibration, distance, level, args, png) -> (report, summary) : the exudyn
@@ -53,15 +54,20 @@ class VehicleModel:
     example_calibration: Callable[[], dict]
 
 
-def _diagnose_in_service(campaign, progress):
+def _diagnose_in_service(campaign, progress, calibration=None, calibration_path=None):
     from calibration.diagnosis.in_service import diagnose_in_service
 
-    return diagnose_in_service(campaign, progress=progress)
+    return diagnose_in_service(campaign, progress=progress, calibration=calibration,
+                               calibration_path=calibration_path)
 
 
-def _diagnose_excitation(campaign, progress):
+def _diagnose_excitation(campaign, progress, calibration=None, calibration_path=None):
     from calibration.diagnosis.excitation import diagnose_excitation
 
+    if calibration is not None:
+        raise InputError("the excitation-test diagnosis fits its own baseline box model and does not take a "
+                         "calibration yet; run it without --calibration", path=calibration_path,
+                         key="--calibration")
     return diagnose_excitation(campaign, progress=progress)
 
 

@@ -4,8 +4,11 @@ the cause, the extended model and the gain.
 1. **Data.** Gap-free records of rail input (axle boxes), responses (bogie and carbody
    sensors) and the axle-box consistency channel (:mod:`.records`); runs split into
    training (odd) and held-out (even) runs; a single run is split in halves.
-2. **Baseline.** The seed's car, its masses, inertias, stiffnesses and dampings fitted to
-   the training runs by residual energy (:mod:`.response`), within the campaign's priors.
+2. **Baseline.** The user's calibration when given, else the campaign's priors (a
+   campaign with neither is refused; parameters neither gives are the seed's car's and the
+   summary lists them, :mod:`.baseline`): its masses, inertias, stiffnesses and dampings
+   fitted to the training runs by residual energy (:mod:`.response`) within the priors'
+   ranges, or a factor ``prior_spread`` around the start where there is no prior.
 3. **Evidence** from the baseline's residuals (:mod:`.evidence`).
 4. **Hypotheses.** Every extension of :data:`.extensions.EXTENSIONS` is scored by the
    evidence that speaks for it and ranked; the leading ones are fitted and judged on
@@ -29,16 +32,19 @@ speed less their sampling variance, held out by speed (:func:`.track.speed_folds
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
+from pathlib import Path
+
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError
-from ...identification.in_service import prior_parameters
 from ...progress import counter
 from ..threads import one_blas_thread
+from .baseline import BaselineStart, baseline_start
 from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, scores
 from .extensions import EXTENSIONS
 from .hypotheses import Hypothesis, fit_hypothesis
 from .records import Record, layout, read_records, statistics
-from .response import FIT_NAMES, fit_response
+from .response import fit_response
 from .result import InServiceDiagnosis
 from .settings import DiagnosisSettings
 
@@ -53,9 +59,9 @@ def _halves(records: list[Record]) -> list[Record]:
     return split
 
 
-def _data(campaign: Campaign, settings: DiagnosisSettings, say) -> DiagnosisData:
+def _data(campaign: Campaign, settings: DiagnosisSettings, start: BaselineStart, say) -> DiagnosisData:
     """The campaign read into records and band statistics, split into training (odd) and
-    held-out (even) runs, with the prior car and the baseline's search bounds."""
+    held-out (even) runs, with the baseline's start and search bounds."""
     lay = layout(campaign)
     records = read_records(campaign, lay, settings.records, progress=say)
     if len(campaign.run_ids) == 1:
@@ -67,25 +73,24 @@ def _data(campaign: Campaign, settings: DiagnosisSettings, say) -> DiagnosisData
                             path=campaign.root)
     runs = stats.runs
     train, test = frozenset(runs[0::2]), frozenset(runs[1::2])
-    prior = prior_parameters(campaign)
-    pri = campaign.meta.priors
-    bounds = {n: (pri[n].low, pri[n].high) if n in pri else
-              (getattr(prior, n) / settings.prior_spread, getattr(prior, n) * settings.prior_spread)
-              for n in FIT_NAMES}
     return DiagnosisData(campaign.root, frozenset(campaign.run_ids), lay, tuple(records), stats, train, test,
-                         prior, bounds, settings)
+                         start.parameters, start.bounds, settings)
 
 
 @one_blas_thread  # the answer must not depend on the machine's thread count (threads.py)
 def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = DiagnosisSettings(),
+                        calibration: Mapping | None = None, calibration_path: Path | None = None,
                         progress=None) -> InServiceDiagnosis:
     """Diagnose an in-service campaign: the baseline car fitted to the training runs, the
     evidence of its residuals, the leading extensions fitted and judged on held-out data,
-    and the cause (see the module's description). ``progress``: None or a callable taking
-    a message (:mod:`calibration.progress`)."""
+    and the cause (see the module's description). ``calibration``: a car2d calibration
+    file's content (read from ``calibration_path``), the baseline's start; without it the
+    campaign's priors. ``progress``: None or a callable taking a message
+    (:mod:`calibration.progress`)."""
     say = progress or (lambda msg: None)
+    start = baseline_start(campaign, settings.prior_spread, calibration, calibration_path)
     stages = counter(progress, 3 + settings.fit_leading, "in-service diagnosis", unit="stage")
-    data = _data(campaign, settings, say)
+    data = _data(campaign, settings, start, say)
     stages.update()
     stats = data.stats
     say(f"{len(data.records)} records, {sum(stats.seconds.values()):.0f} s in {len(stats.S)} (run, speed) cells; "
@@ -111,12 +116,12 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     else:
         best = None
         cause = "unexplained" if words else "none"
-    summary = _summary(cause, best, words, ev, hyps, settings)
+    summary = _summary(cause, best, words, ev, hyps, settings) + start.describe()
     stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped
     stages.close()
     return InServiceDiagnosis(
         campaign=campaign.root, cause=cause, summary=tuple(summary), evidence=ev, hypotheses=tuple(hyps), best=best,
-        baseline=base_fit, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
+        baseline=base_fit, start=start, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
         heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats)
 
 

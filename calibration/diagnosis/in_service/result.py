@@ -7,6 +7,7 @@ import copy
 from dataclasses import dataclass
 from pathlib import Path
 
+from .baseline import BaselineStart
 from .evidence import Evidence
 from .hypotheses import Hypothesis
 from .records import Layout, Statistics
@@ -32,7 +33,8 @@ class InServiceDiagnosis:
     evidence: Evidence
     hypotheses: tuple[Hypothesis, ...]
     best: Hypothesis | None
-    baseline: ResponseFit  # the seed's car fitted to the training runs
+    baseline: ResponseFit  # the baseline car fitted to the training runs
+    start: BaselineStart  # where that fit started (the user's calibration or the priors) and its defaults
     bounds: dict  # baseline parameter -> (low, high) searched
     training_runs: tuple[str, ...]
     heldout_runs: tuple[str, ...]
@@ -54,7 +56,9 @@ class InServiceDiagnosis:
                                                "reduction": best.gain},
             "baseline": {"parameters": self.baseline.parameters.as_dict(),
                          "parameters_at_bounds": list(self.baseline.at_bounds),
-                         "bounds": {k: list(v) for k, v in self.bounds.items()}},
+                         "bounds": {k: list(v) for k, v in self.bounds.items()},
+                         "source": self.start.source, "start": self.start.parameters.as_dict(),
+                         "defaults": list(self.start.defaults), "widened": list(self.start.widened)},
             "hypotheses": [h.to_json() for h in self.hypotheses],
             "split": {"training_runs": list(self.training_runs), "heldout_runs": list(self.heldout_runs)},
             "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
