@@ -361,11 +361,17 @@ def test_an_extension_that_gains_without_explaining_the_systematic_residual_is_n
 
 @pytest.mark.slow
 def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_path, capsys):
+    """From a user's calibration (here the car the campaign was measured on): the baseline
+    starts there, says so, and the hidden cause is still named."""
     root = _campaign(tmp_path / "c", 78, EffectChoice(EFFECTS["cog_offset"], 1.2))
+    truth = json.loads((tmp_path / "c.truth.json").read_text())
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"format": "railcal-calibration/1", "model": "car2d", "parameters": truth["parameters"]}))
     out = tmp_path / "diag.json"
-    assert main(["diagnose", str(root), "--out", str(out), "--quiet"]) == 0
+    assert main(["diagnose", str(root), "--calibration", str(cal), "--out", str(out), "--quiet"]) == 0
     result = json.loads(out.read_text())
     assert {"cause", "evidence", "extension", "gain"} <= set(result)
+    assert result["baseline"]["start"] == truth["parameters"] and str(cal) in result["baseline"]["source"]
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])
     printed = capsys.readouterr().out  # one summary line: the cause and the files written
