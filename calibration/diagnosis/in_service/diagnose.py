@@ -23,6 +23,9 @@ the cause, the extended model and the gain.
    leaves the residual as coherent as before) is the cause. Otherwise ``none`` when the
    evidence shows nothing systematic (residual input-coherence, peaks and lines all below
    their thresholds), or ``unexplained`` with the evidence.
+6. **Detectability** (:mod:`.detectability`): for every extension, the weakest effect this
+   campaign could have named, predicted at the baseline fit; ``none`` lists them ("no
+   effect above these sizes") and names effects the sensor set cannot observe.
 
 Held-out error per channel kind: response channels, NRP over the bands where the
 measured channel stands ``signal_factor`` above its own spectral floor (noise-only bands
@@ -40,6 +43,7 @@ from ...data.errors import CampaignError
 from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import BaselineStart, baseline_start
+from .detectability import Detectability, detectability
 from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, scores
 from .extensions import EXTENSIONS
 from .hypotheses import Hypothesis, fit_hypothesis
@@ -98,6 +102,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     base_fit = fit_response(stats, data.layout, data.keys(data.train), data.prior, data.bounds)
     stages.update()
     say(f"baseline fitted ({base_fit.evaluations} evaluations)")
+    detect = detectability(data, base_fit)
     ev = baseline_evidence(data, base_fit)
     score = scores(ev, data.layout, settings)
     ranked = sorted(score, key=lambda k: -score[k])
@@ -116,19 +121,21 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     else:
         best = None
         cause = "unexplained" if words else "none"
-    summary = _summary(cause, best, words, ev, hyps, settings) + start.describe()
+    summary = _summary(cause, best, words, ev, hyps, settings, detect) + start.describe()
     stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped
     stages.close()
     return InServiceDiagnosis(
         campaign=campaign.root, cause=cause, summary=tuple(summary), evidence=ev, hypotheses=tuple(hyps), best=best,
         baseline=base_fit, start=start, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
-        heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats)
+        heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats,
+        detectability=detect)
 
 
 def _summary(cause: str, best: Hypothesis | None, alarm_words: list[str], ev: Evidence, hyps: list[Hypothesis],
-             s: DiagnosisSettings) -> list[str]:
-    """The diagnosis in words: the cause, the alarms, the hypotheses that gained but were
-    not named and why, all hypotheses by gain, the baseline's parameters at bounds."""
+             s: DiagnosisSettings, detect: Detectability) -> list[str]:
+    """The diagnosis in words: the cause (``none`` with the smallest effects this campaign
+    could have detected, :mod:`.detectability`), the alarms, the hypotheses that gained but
+    were not named and why, all hypotheses by gain, the baseline's parameters at bounds."""
     out = []
     if best is not None:
         out.append(f"cause: {cause} ({best.extension.description}); held-out error on {best.best_channel} "
@@ -139,7 +146,7 @@ def _summary(cause: str, best: Hypothesis | None, alarm_words: list[str], ev: Ev
         out.append("unexplained: the baseline leaves systematic residuals and no extension in the registry "
                    "reduces the held-out error enough")
     else:
-        out.append("none: the baseline explains the data within the noise (no systematic residual, no extension gains)")
+        out.append("none: no effect above these sizes: " + detect.words())
     out += alarm_words
     for h in hyps:
         if h is best or h.penalised_gain < s.min_gain:

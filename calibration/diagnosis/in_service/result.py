@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .baseline import BaselineStart
+from .detectability import Detectability
 from .evidence import Evidence
 from .hypotheses import Hypothesis
 from .records import Layout, Statistics
@@ -41,11 +42,14 @@ class InServiceDiagnosis:
     settings: DiagnosisSettings
     layout: Layout
     statistics: Statistics  # the band statistics every error and figure is computed from
+    detectability: Detectability  # each extension's weakest detectable effect on this campaign
 
     def to_json(self) -> dict:
         """The result as JSON values (a new dict on each call): ``format``, ``campaign``,
         ``cause``, ``evidence`` (``summary`` first), ``extension``, ``gain``, ``baseline``,
-        ``hypotheses``, ``split``, ``settings``."""
+        ``hypotheses``, ``split``, ``settings``, ``detectability`` ({extension: parameter,
+        unit, detectable_beyond (None: not within its range or not observable), observable,
+        why})."""
         best, s = self.best, self.settings
         out = {
             "format": FORMAT, "campaign": str(self.campaign), "cause": self.cause,
@@ -63,6 +67,7 @@ class InServiceDiagnosis:
             "split": {"training_runs": list(self.training_runs), "heldout_runs": list(self.heldout_runs)},
             "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
                          "max_systematic_left": s.max_systematic_left},
+            "detectability": self.detectability.to_json(),
         }
         return copy.deepcopy(out)  # the caller may change it; the result stays as made
 

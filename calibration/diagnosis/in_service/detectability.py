@@ -1,0 +1,313 @@
+"""Detectability: for each extension of :data:`.extensions.EXTENSIONS`, the weakest effect
+this campaign could have named, so that ``none`` says what it rules out.
+
+Nothing here knows a truth. At the baseline fit, the data are imagined to carry the
+effect at magnitude theta, and the held-out error statistics the decision uses are
+predicted from the model:
+
+* **response** extensions: the effect changes the prediction by dG = G_theta - G_0 (the
+  extension's transfer at theta minus the baseline's). The baseline refit absorbs what
+  its own parameters can mimic: dG is projected off the span of the baseline's parameter
+  sensitivities, weighted as its fit weighs the training data (a linearised refit). What
+  is left adds diag(dG S_uu dG^H) to the held-out residual power of each band, over the
+  signal bands that data with the effect would have; a perfect extension removes it
+  again. The gain on a channel is that addition over the baseline's measured held-out
+  residual plus it.
+* **wheel_out_of_round**: a radius amplitude A at wavelength lambda is a line of curvature
+  A (2 pi / lambda)^2 in the consistency channel, mean square half its square, against
+  the channel's measured held-out mean square.
+* **track_flexibility**: the axle boxes' spectra multiplied by the track's
+  transmissibility and the rigid rail's misfit held out by speed recomputed
+  (:func:`.track.collapse_shift`), against its measured value.
+
+An effect is *detectable* at theta when the predicted gain, less ``Z`` of its sampling
+standard deviation (the effect's cross term with the measured residual, from the
+held-out data's degrees of freedom), reaches the decision's bar, ``min_gain`` plus
+``penalty`` per extension parameter. The limit is found on the extension's own physical
+magnitude, from the weak end of its search range towards the strong end (a grid, then
+bisection); the extension's other parameters are held at stated values. An effect that
+even at the strong end of its range moves no channel's held-out error by ``Z`` of its
+sampling scatter is *not observable* with this sensor set.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ...models.car2d import CarExtras
+from .evidence import DiagnosisData, signal_bands
+from .extensions import EXTENSIONS
+from .response import FIT_NAMES, ResponseFit, SensorModel, channel_power, input_noise_power, response_nrp, transfer
+from .track import collapse_shift
+from .wheels import polygon_error
+
+#: standard deviations of the gain's sampling scatter an effect must clear: a detectable
+#: effect's expected gain clears the bar with about 95 % probability (one-sided)
+Z = 1.645
+#: grid points from the weak to the strong end of a magnitude's range before bisection
+GRID = 9
+
+
+@dataclass(frozen=True)
+class Magnitude:
+    """The physical size of an extension's effect: ``parameter`` [``unit``] from ``weak``
+    (the range's end where the effect is weakest) to ``strong``; for a response
+    extension the other parameters are held at ``held``. ``signed``: a magnitude of either
+    sign (both are checked, the weaker counts). ``log``: the range is searched in log."""
+
+    parameter: str
+    unit: str
+    weak: float
+    strong: float
+    held: dict = field(default_factory=dict)
+    signed: bool = False
+    log: bool = True
+
+    def at(self, t: float) -> float:
+        """The magnitude a fraction ``t`` (0 weak, 1 strong) along the range."""
+        if self.log:
+            return float(self.weak * (self.strong / self.weak) ** t)
+        return float(self.weak + t * (self.strong - self.weak))
+
+
+_EXTRAS = CarExtras()
+#: the response extensions' magnitudes (their ranges are the extensions' own search ranges)
+RESPONSE_MAGNITUDES = {
+    "sensor_offset": Magnitude("dx", "m", 0.0, 2.5, {"gyro_gain": 1.0}, signed=True, log=False),
+    "carbody_bending": Magnitude("bending_hz", "Hz", 18.0, 4.0, {"bending_damping": _EXTRAS.bending_damping,
+                                                                 "bending_mass_ratio": _EXTRAS.bending_mass_ratio}),
+    "cog_offset": Magnitude("cog_offset", "m", 0.0, 3.0, signed=True, log=False),
+    "airspring_reservoir": Magnitude("reservoir_ratio", "-", 0.05, 5.0,
+                                     {"reservoir_corner_hz": _EXTRAS.reservoir_corner_hz}),
+}
+_missing = [n for n, e in EXTENSIONS.items() if e.kind == "response" and n not in RESPONSE_MAGNITUDES]
+if _missing:
+    raise ImportError(f"detectability.RESPONSE_MAGNITUDES lacks the response extension(s) {', '.join(_missing)}")
+
+
+@dataclass(frozen=True)
+class Limit:
+    """One extension's detectable limit: its effect is detected beyond ``detectable_beyond``
+    (towards the strong end of its range; None: not detectable within its range or not
+    observable), in words ``why``."""
+
+    name: str
+    parameter: str
+    unit: str
+    detectable_beyond: float | None
+    observable: bool
+    why: str
+    stronger: str  # "above" or "below": which side of the limit is the stronger effect
+
+    def to_json(self) -> dict:
+        return {"parameter": self.parameter, "unit": self.unit, "detectable_beyond": self.detectable_beyond,
+                "observable": self.observable, "why": self.why}
+
+    def words(self) -> str:
+        if not self.observable:
+            return f"{self.name}: not observable with these sensors"
+        if self.detectable_beyond is None:
+            return f"{self.name}: not detectable within its range"
+        op = ">=" if self.stronger == "above" else "<="
+        return f"{self.name} {self.parameter} {op} {self.detectable_beyond:.3g} {self.unit}"
+
+
+@dataclass(frozen=True)
+class Detectability:
+    """Every extension's limit on this campaign."""
+
+    limits: tuple[Limit, ...]
+
+    def to_json(self) -> dict:
+        return {x.name: x.to_json() for x in self.limits}
+
+    def words(self) -> str:
+        return "; ".join(x.words() for x in self.limits)
+
+
+def _search(mag: Magnitude, judge: Callable[[float], tuple[float, float]], bar: float):
+    """(limit or None, margin at the strong end, observable at the strong end): ``judge(theta)``
+    gives (gain less Z sigma, Z sigma-normalised effect) for magnitude theta."""
+    ts = np.linspace(0.0, 1.0, GRID)
+    if not mag.log:
+        ts = ts[1:]  # a linear range starts at no effect
+    margins = [judge(mag.at(t))[0] - bar for t in ts]
+    strong, signif = judge(mag.strong)
+    observable = signif >= 1.0
+    if margins[-1] < 0:
+        return None, strong, observable
+    i = len(ts) - 1  # the weakest grid point from which on every stronger one is detectable
+    while i > 0 and margins[i - 1] >= 0:
+        i -= 1
+    if i == 0 and mag.log:
+        return mag.at(ts[0]), strong, observable
+    lo, hi = (ts[i - 1] if i > 0 else 0.0), ts[i]
+    for _ in range(8):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if judge(mag.at(mid))[0] >= bar else (mid, hi)
+    return mag.at(hi), strong, observable
+
+
+class _Responses:
+    """The baseline's held-out residual and the linearised refit, formed once."""
+
+    def __init__(self, data: DiagnosisData, base: ResponseFit):
+        stats, lay = data.stats, data.layout
+        self.data, self.base = data, base
+        self.f, self.bw = stats.centres, np.diff(stats.edges)
+        n_out = len(lay.responses)
+        self.n_out = n_out
+        test, all_keys = data.keys(data.test), set(stats.S)
+        S_tr, _ = stats.total(lambda k: k in data.keys(data.train))
+        self.S_te, _ = stats.total(lambda k: k in test)
+        self.S_all, _ = stats.total()
+        self.R0, self.P = response_nrp(stats, lay, test, base.parameters, base.extras, base.sensors, by_band=True)
+        self.R_all, _ = response_nrp(stats, lay, all_keys, base.parameters, base.extras, base.sensors, by_band=True)
+        self.eiv = input_noise_power(stats, lay, all_keys, base.parameters, base.extras, base.sensors)
+        self.nu = np.maximum(self.bw * stats.seconds_of(test), 1.0)[:, None]  # held-out averages per band
+        self.G0 = self._G(base.extras, base.sensors)
+        norm = 1.0 / np.maximum(channel_power(S_tr, 4, n_out).sum(axis=0), 1e-300)
+        h = 1e-4  # the baseline's sensitivities per relative change of each fitted parameter
+        D = [(self._G(base.extras, base.sensors, base.parameters.replace(
+            **{n: getattr(base.parameters, n) * (1 + h)})) - self.G0) / h for n in FIT_NAMES]
+        self.D = np.stack(D)  # (n_param, n_band, n_out, 4)
+        self.w = np.sqrt(norm)[None, None, :, None]
+        self.Suu_tr = S_tr[:, :4, :4]
+        A = np.einsum("pkcj,kjl,qkcl->pq", self.D * self.w, self.Suu_tr, (self.D * self.w).conj()).real
+        self.A = A + 1e-9 * np.trace(A) / len(A) * np.eye(len(A))
+
+    def _G(self, extras, sensors, p=None):
+        return transfer(self.base.parameters if p is None else p, extras, sensors, self.data.layout, self.f)
+
+    def judge(self, extras: CarExtras, sensors: SensorModel) -> tuple[float, float]:
+        """(best channel's gain less Z sigma, its effect over Z sigma) if the data carried the
+        effect of ``extras`` / ``sensors``."""
+        s = self.data.settings
+        dG = self._G(extras, sensors) - self.G0
+        rhs = np.einsum("pkcj,kjl,kcl->p", self.D * self.w, self.Suu_tr, (dG * self.w[0]).conj()).real
+        left = dG - np.einsum("p,pkcj->kcj", np.linalg.solve(self.A, rhs), self.D)
+        dP = np.einsum("kcj,kjl,kcl->kc", left, self.S_te[:, :4, :4], left.conj()).real
+        dP_all = np.einsum("kcj,kjl,kcl->kc", left, self.S_all[:, :4, :4], left.conj()).real
+        # the signal bands the decision would judge on: the held-out channels' power with the effect
+        Syu = self.S_te[:, 4:4 + self.n_out, :4]
+        P = self.P + np.einsum("kcj,kjl,kcl->kc", dG, self.S_te[:, :4, :4], dG.conj()).real \
+            + 2 * np.einsum("kcj,kcj->kc", dG, Syu.conj()).real
+        masks = signal_bands(np.maximum(P, 0.0), self.bw, s.signal_factor) \
+            & (self.eiv < s.input_noise_share * (self.R_all + dP_all))
+        before = np.sum(np.where(masks, self.R0 + dP, 0.0), axis=0)
+        added = np.sum(np.where(masks, dP, 0.0), axis=0)
+        sigma = np.sqrt(np.sum(np.where(masks, 2 * dP * self.R0 / self.nu, 0.0), axis=0))
+        ok = before > 0
+        gain = np.where(ok, added / np.where(ok, before, 1.0), 0.0)
+        zs = np.where(ok, Z * sigma / np.where(ok, before, 1.0), 0.0)
+        c = int(np.argmax(gain - zs))
+        return float(gain[c] - zs[c]), float(added[c] / max(Z * sigma[c], 1e-300))
+
+
+def _carbody_words(data: DiagnosisData) -> str:
+    if any(o.body == "carbody" for o in data.layout.responses):
+        return "its predicted change on every channel of this campaign stays within the data's scatter"
+    return ("it changes the bogie channels by less than the data's scatter; carbody floor accelerometers "
+            "(above the bogies and at the centre) would see it")
+
+
+def _response_limit(name: str, r: _Responses, bar: float) -> Limit:
+    ext, mag = EXTENSIONS[name], RESPONSE_MAGNITUDES[name]
+
+    def judge(theta: float) -> tuple[float, float]:
+        out = [r.judge(*ext.make({**mag.held, mag.parameter: sgn * theta}))
+               for sgn in ((1.0, -1.0) if mag.signed else (1.0,))]
+        return min(o[0] for o in out), min(o[1] for o in out)
+
+    limit, strong, observable = _search(mag, judge, bar)
+    stronger = "above" if mag.strong > mag.weak else "below"
+    held = ", ".join(f"{k} = {v:g}" for k, v in mag.held.items())
+    held = f" ({held} held)" if held else ""
+    rng = f"{min(mag.weak, mag.strong):g}-{max(mag.weak, mag.strong):g} {mag.unit}"
+    if not observable:
+        why = f"not observable with this sensor set: even at {mag.strong:g} {mag.unit}{held} {_carbody_words(r.data)}" \
+            if name != "sensor_offset" else f"even at {mag.strong:g} {mag.unit} it changes no channel beyond the scatter"
+    elif limit is None:
+        why = (f"not detectable within its range {rng}{held}: at {mag.strong:g} {mag.unit} the predicted held-out "
+               f"gain less its scatter is {strong:.0%}, under the bar of {bar:.0%}")
+    else:
+        side = "and above" if stronger == "above" else "and below"
+        what = f"|{mag.parameter}|" if mag.signed else mag.parameter
+        why = (f"{what} {limit:.3g} {mag.unit} {side}{held} would "
+               f"gain {bar:.0%} on held-out data after the baseline's refit absorbs what it can")
+    return Limit(name, mag.parameter, mag.unit, limit if observable else None, observable, why, stronger)
+
+
+def _wheel_limit(data: DiagnosisData, bar: float) -> Limit:
+    s = data.settings.wheels
+    floor = polygon_error(data.records, data.rows, data.test, None, s)
+    n = int(round(s.segment_m / s.step_m))
+    segments = sum(int((r.distance[-1] - r.distance[0]) // s.segment_m) for r in data.records if r.run_id in data.test)
+    lam = s.wavelengths_m[1]  # the longest wavelength searched: the smallest curvature per unit radius
+    # line mean square dE = a^2/2 against the floor E0: gain dE / (E0 + dE), its scatter the
+    # line's cross term with the white floor in its bin, sqrt(2 dE E0 / (n/2) / segments)
+    per_bin = floor / (n / 2) / max(segments, 1)
+    dE, k = bar / (1 - bar) * floor, 0.0
+    for _ in range(50):  # dE = bar (E0 + dE) + Z sqrt(2 dE per_bin): a fixed point, contracting
+        k = (bar * floor + Z * np.sqrt(2 * dE * per_bin)) / (1 - bar)
+        if abs(k - dE) <= 1e-9 * k:
+            break
+        dE = k
+    radius = float(np.sqrt(2 * dE) * (lam / (2 * np.pi)) ** 2)
+    why = (f"radius amplitude {radius:.3g} m and above at wavelength {lam:g} m (the longest searched); at "
+           f"wavelength L the limit is (L / {lam:g} m)^2 times this, its curvature line then carrying {bar:.0%} "
+           "of the consistency channel's held-out mean square")
+    return Limit("wheel_out_of_round", "radius_amplitude", "m", radius, True, why, "above")
+
+
+def _track_limit(data: DiagnosisData, base: ResponseFit, bar: float) -> Limit:
+    s = data.settings.track
+    m_eff = base.parameters.m_w + _EXTRAS.track_mass
+    zeta = _EXTRAS.track_damping_ratio
+    k_of = lambda f_t: float((2 * np.pi * f_t) ** 2 * m_eff)  # noqa: E731
+    mag = Magnitude("track_stiffness", "N/m", k_of(s.f_t_range[1]), k_of(s.f_t_range[0]))
+    got = collapse_shift(data.stats, set(data.stats.S), s)
+    if got is None:
+        return Limit("track_flexibility", mag.parameter, mag.unit, None, False,
+                     "all data lie in one speed bin: a track resonance shows only across speeds", "below")
+    floor, shift = got
+    floor = np.maximum(floor, 0.0)
+
+    def judge(k: float) -> tuple[float, float]:
+        up, sd = shift(float(np.sqrt(k / m_eff) / (2 * np.pi)), zeta)
+        before = floor + np.maximum(up, 0.0)
+        g = np.where(before > 0, (np.maximum(up, 0.0) - Z * sd) / np.maximum(before, 1e-300), 0.0)
+        c = int(np.argmax(g))
+        return float(g[c]), float(up[c] / max(Z * sd[c], 1e-300))
+
+    limit, strong, observable = _search(mag, judge, bar)
+    held = f"damping ratio {zeta:g}, moving mass {m_eff:.0f} kg per wheelset"
+    if limit is None:
+        why = (f"not detectable within its range {mag.strong:.3g}-{mag.weak:.3g} N/m (track resonance "
+               f"{s.f_t_range[0]:g}-{s.f_t_range[1]:g} Hz; {held}): the axle boxes' collapse over this campaign's "
+               "speeds would not change enough")
+    else:
+        why = (f"track stiffness {limit:.3g} N/m and below (resonance "
+               f"{np.sqrt(limit / m_eff) / (2 * np.pi):.0f} Hz; {held}) would gain {bar:.0%} on the axle boxes' "
+               "collapse held out by speed")
+    return Limit("track_flexibility", mag.parameter, mag.unit, limit, observable or limit is not None, why, "below")
+
+
+def detectability(data: DiagnosisData, base: ResponseFit) -> Detectability:
+    """Each extension's detectable limit on this campaign, from the baseline fit ``base``
+    and the measured held-out residuals (see the module's description)."""
+    s = data.settings
+    r = None
+    limits = []
+    for name, ext in EXTENSIONS.items():
+        bar = s.min_gain + s.penalty * ext.n_params
+        if ext.kind == "response":
+            r = r or _Responses(data, base)
+            limits.append(_response_limit(name, r, bar))
+        elif ext.kind == "wheel":
+            limits.append(_wheel_limit(data, bar))
+        else:
+            limits.append(_track_limit(data, base, bar))
+    return Detectability(tuple(limits))

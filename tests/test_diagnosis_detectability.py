@@ -1,0 +1,112 @@
+"""Detectability (issue 31): each catalogue extension's weakest detectable effect, predicted
+from the fitted baseline and the measured residual floor. The truth builds the campaigns
+only; the assertions are physics: effects that move no channel the sensors have are not
+observable, a quieter campaign sees weaker effects, and ``none`` says which sizes it rules out.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from calibration.data.campaign import open_campaign
+from calibration.diagnosis.in_service import EXTENSIONS, DiagnosisSettings, diagnose_in_service
+from calibration.diagnosis.in_service.baseline import baseline_start
+from calibration.diagnosis.in_service.detectability import Detectability, detectability
+from calibration.diagnosis.in_service.diagnose import _data
+from calibration.diagnosis.in_service.response import fit_response
+from calibration.truth.in_service import InServiceSettings, synth_in_service
+from calibration.truth.track import LineSpec
+
+#: campaign seed, unused by the other diagnosis tests and benches
+SEED = 91
+SMALL = InServiceSettings(journeys=2, line=LineSpec(length=8_000.0), carbody_sensors=False)
+#: the same campaign with every response and axle-box sensor three times quieter
+QUIET = dict(bogie_acc_noise=SMALL.bogie_acc_noise / 3, carbody_acc_noise=SMALL.carbody_acc_noise / 3,
+             gyro_noise_raw=SMALL.gyro_noise_raw / 3, axle_acc_noise=SMALL.axle_acc_noise / 3)
+CARBODY_ONLY = ("carbody_bending",)  # moves the carbody; what it gives back to the bogies is within their noise
+BOGIE = ("sensor_offset", "wheel_out_of_round", "track_flexibility")
+
+
+@pytest.fixture(scope="module")
+def campaigns(tmp_path_factory):
+    root = tmp_path_factory.mktemp("detectability")
+    made = {}
+    for name, settings in (("bogie", SMALL), ("carbody", replace(SMALL, carbody_sensors=True)),
+                           ("carbody_quiet", replace(SMALL, carbody_sensors=True, **QUIET))):
+        synth_in_service(root / name, seed=SEED, settings=settings, fmt="parquet")
+        made[name] = open_campaign(root / name)
+    return made
+
+
+def _limits(campaign) -> Detectability:
+    """The detectability at the baseline fit, as the diagnosis computes it."""
+    s = DiagnosisSettings()
+    data = _data(campaign, s, baseline_start(campaign, s.prior_spread), lambda msg: None)
+    base = fit_response(data.stats, data.layout, data.keys(data.train), data.prior, data.bounds)
+    return detectability(data, base)
+
+
+@pytest.fixture(scope="module")
+def limits(campaigns):
+    return {name: _limits(c).to_json() for name, c in campaigns.items()}
+
+
+def _weaker_or_equal(ext: str, a: float, b: float) -> bool:
+    """Is limit ``a`` at an effect as weak as ``b`` or weaker? Bending and track: the limit
+    is the highest frequency / stiffness seen, so weaker is higher; others: smaller."""
+    return a >= b * (1 - 1e-9) if ext in ("carbody_bending", "track_flexibility") else a <= b * (1 + 1e-9)
+
+
+@pytest.mark.slow
+def test_every_catalogue_extension_has_a_limit_in_its_own_parameter(limits):
+    for table in limits.values():
+        assert set(table) == set(EXTENSIONS)
+        for ext, row in table.items():
+            assert set(row) == {"parameter", "unit", "detectable_beyond", "observable", "why"}
+            assert row["why"] and row["unit"]
+            assert row["detectable_beyond"] is None or row["detectable_beyond"] > 0
+    assert limits["carbody"]["carbody_bending"]["parameter"] == "bending_hz"
+    assert limits["carbody"]["cog_offset"]["unit"] == "m"
+
+
+@pytest.mark.slow
+def test_carbody_effects_are_not_observable_with_bogie_sensors_only(limits):
+    bogie, carbody = limits["bogie"], limits["carbody"]
+    for ext in CARBODY_ONLY:
+        assert not bogie[ext]["observable"] and bogie[ext]["detectable_beyond"] is None
+        assert "carbody" in bogie[ext]["why"]  # says which sensors would see it
+        assert carbody[ext]["observable"] and carbody[ext]["detectable_beyond"] is not None
+    for ext in BOGIE:
+        assert bogie[ext]["observable"] and bogie[ext]["detectable_beyond"] is not None
+    # a CoG offset reaches the bogies only through the secondary suspension: floor sensors see
+    # a weaker one than the bogie sensors can (here none within its range)
+    assert carbody["cog_offset"]["detectable_beyond"] is not None
+    assert bogie["cog_offset"]["detectable_beyond"] is None or \
+        bogie["cog_offset"]["detectable_beyond"] > carbody["cog_offset"]["detectable_beyond"]
+
+
+@pytest.mark.slow
+def test_a_quieter_campaign_detects_weaker_effects(limits):
+    loud, quiet = limits["carbody"], limits["carbody_quiet"]
+    shrunk = []
+    # the track's floor is the rail spectra's own scatter over speed, not the sensors' noise
+    for ext in set(EXTENSIONS) - {"track_flexibility"}:
+        a, b = quiet[ext]["detectable_beyond"], loud[ext]["detectable_beyond"]
+        assert b is None or (a is not None and _weaker_or_equal(ext, a, b)), (ext, a, b)
+        if a is not None and b is not None and not _weaker_or_equal(ext, b, a):
+            shrunk.append(ext)
+    # the sensor noise sets these extensions' floors (bending is seen over its whole range in both)
+    assert {"sensor_offset", "airspring_reservoir", "wheel_out_of_round"} <= set(shrunk), shrunk
+
+
+@pytest.mark.slow
+def test_none_lists_every_extension_and_what_it_rules_out(campaigns):
+    diag = diagnose_in_service(campaigns["bogie"])
+    assert diag.cause == "none", diag.summary
+    line = diag.summary[0]
+    assert line.startswith("none: no effect above these sizes: ")
+    assert all(ext in line for ext in EXTENSIONS)
+    assert "carbody_bending: not observable" in line
+    written = diag.to_json()["detectability"]
+    assert written == diag.detectability.to_json() and set(written) == set(EXTENSIONS)
