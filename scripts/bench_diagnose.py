@@ -187,10 +187,10 @@ def _cases() -> tuple[Case, ...]:
     return tuple(out)
 
 
-def _answer(cause: str, summary=()) -> str:
+def _answer(cause: str, summary=(), hidden=()) -> str:
     """The diagnosis's answer as the table spells it: causes joined by + in sorted order; a
-    `none` that states an effect is not observable is ``not_observable``."""
-    if cause == "none" and any("not observable" in line for line in summary):
+    `none` whose summary states that a hidden effect is not observable is ``not_observable``."""
+    if cause == "none" and any("not observable" in line and any(n in line for n in hidden) for line in summary):
         return NOT_OBSERVABLE
     return "+".join(sorted(cause.split("+")))
 
@@ -254,7 +254,7 @@ def run_exudyn_case(c: dict) -> dict:
                 "synth_s": t1 - t0, "diagnose_s": time.perf_counter() - t1}
     t2 = time.perf_counter()
     shutil.rmtree(root, ignore_errors=True)
-    answer = _answer(diag.cause, diag.summary)
+    answer = _answer(diag.cause, diag.summary, case.hidden)
     return {**c, "diagnosed": diag.cause, "answer": answer, "verdict": verdict(case, answer),
             "summary": list(diag.summary), "gain": diag.to_json()["gain"],
             "extension": diag.best and diag.best.parameters, "truth_effect": truth["effect"],
