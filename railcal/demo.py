@@ -127,7 +127,7 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     validation.plot(out / "validation.png")
     write_result(out / "validation.json", validation.to_json(), "validation")
     say("5/11 diagnosing what the model gets wrong (residuals, hypotheses, held-out gain)")
-    diagnosis = _diagnose(out, campaign, truth, progress)
+    diagnosis = _diagnose(out, campaign, truth, calibration.to_json(), progress)
     excitation = _excitation_test(out, say, progress, demo)
     say("9/11 exporting FMUs of the calibrated car and box-type vehicle, running them in fmpy")
     fmus = _fmus(out, campaign, calibration.parameters, excitation["calibration_json"])
@@ -191,13 +191,15 @@ def _checks_report(checks: list[tuple[str, bool]]) -> str:
                       *[f"- {'pass' if held else 'FAIL'}: {text}" for text, held in checks], "", ""])
 
 
-def _diagnose(out: Path, campaign, truth: dict, progress) -> dict:
+def _diagnose(out: Path, campaign, truth: dict, calibration: dict, progress) -> dict:
+    """The diagnosis from the calibrated car (``railcal diagnose --calibration``)."""
     import time
 
     from calibration.diagnosis.in_service import diagnose_in_service
 
     t0 = time.perf_counter()
-    diag = diagnose_in_service(campaign, progress=progress)
+    diag = diagnose_in_service(campaign, calibration=calibration, calibration_path=out / "calibration.json",
+                               progress=progress)
     wall_time_s = time.perf_counter() - t0
     result = {**diag.to_json(), "wall_time_s": wall_time_s, "plots": [p.name for p in diag.plot(out / "diagnosis")]}
     result["truth_effect"] = truth["effect"]
