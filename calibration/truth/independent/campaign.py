@@ -285,7 +285,12 @@ def synth_in_service_independent(out, *, seed: int = 0, settings: IndependentSet
               "m_b": Prior(spec.m_b[0], 0.9 * spec.m_b[0], 1.25 * spec.m_b[0]),
               "J_b": Prior(spec.J_b, 0.7 * spec.J_b, 1.3 * spec.J_b),
               "k_p": Prior(spec.k_p, 0.92 * spec.k_p, 1.25 * spec.k_p),
-              "k_s": Prior(spec.k_s, 0.75 * spec.k_s, 1.5 * spec.k_s)}
+              "k_s": Prior(spec.k_s, 0.75 * spec.k_s, 1.5 * spec.k_s),
+              # what a user has from the data sheets: the dampers' and wheelsets' published values (the
+              # dampers drawn around them), so that no diagnosis falls back on another car's
+              "c_p": Prior(spec.c_p, 0.6 * spec.c_p, 1.5 * spec.c_p),
+              "c_s": Prior(spec.c_s, 0.6 * spec.c_s, 1.5 * spec.c_s),
+              "m_w": Prior(spec.m_w, 0.95 * spec.m_w, 1.05 * spec.m_w)}
     meta = CampaignMeta(kind="in_service", name=f"independent exudyn truth, {spec.name} (seed {seed})",
                         vehicle=f"{spec.name} (independent exudyn truth)", sensors=sensors, sampling_rate=s.fs,
                         geometry={"bogie_semi_spacing": spec.L_v, "semi_wheelbase": spec.L_b, "length": spec.length},
