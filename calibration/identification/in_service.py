@@ -42,6 +42,7 @@ from ..signals.spectral_lines import LineSettings, LineWindowCollector, Spectral
 from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
                   plan_segments)
 from .frf import Pole, fit_poles, h1
+from .prior_range import outside, prior_frequency_ranges
 
 RIGID_LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 IO_ANALYSIS = "input_output"
@@ -360,7 +361,14 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             reason = why_not.get(lbl, "no input-output fit (no axle-box sensors or geometry)" if not have_io
                                  else "the input-output fit found no pole for it")
             undetermined.append(UndeterminedMode(lbl, f"{reason}; no FDD peak stands in for it"))
+    ranges = prior_frequency_ranges(campaign, prior)
+    for m in list(modes):
+        why = outside(m.label, m.frequency_hz, ranges)
+        if why:
+            modes.remove(m)
+            undetermined.append(UndeterminedMode(m.label, why))
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
+    undetermined.sort(key=lambda u: RIGID_LABELS.index(u.label))
 
     rejected = _rejected(peaks, fdd, modes, lines)
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,

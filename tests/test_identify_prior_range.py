@@ -1,0 +1,49 @@
+"""Identified rigid-body modes are checked against where the campaign's priors put them."""
+from __future__ import annotations
+
+from calibration.data.campaign import Prior, open_campaign
+from calibration.data.outputs import CampaignWriter
+from calibration.identification.in_service import prior_parameters
+from calibration.identification.prior_range import FREQUENCY_PARAMETERS, MARGIN, outside, prior_frequency_ranges
+from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
+from calibration.models.vehicles import SEED_PRIOR_RANGES
+
+from conftest import tiny_columns, tiny_meta
+
+NOMINAL = {"m_v": 38747.0, "J_v": 611000.0, "m_b": 3087.0, "J_b": 3500.0, "k_p": 2840000.0, "k_s": 720000.0}
+
+
+def _campaign(tmp_path, ranges):
+    priors = {n: Prior(NOMINAL[n], lo, hi) for n, (lo, hi) in ranges.items()}
+    root = tmp_path / "c"
+    with CampaignWriter(root, tiny_meta(priors=priors)) as w:
+        w.write_run("run_a", tiny_columns())
+        w.commit()
+    return open_campaign(root)
+
+
+def test_the_ranges_hold_the_prior_car_and_widen_with_the_priors(tmp_path):
+    narrow = _campaign(tmp_path / "a", {n: (0.95 * NOMINAL[n], 1.05 * NOMINAL[n]) for n in FREQUENCY_PARAMETERS})
+    wide = _campaign(tmp_path / "b", SEED_PRIOR_RANGES)
+    r_narrow = prior_frequency_ranges(narrow, prior_parameters(narrow))
+    r_wide = prior_frequency_ranges(wide, prior_parameters(wide))
+    f0 = frequencies_by_label(undamped_modes(build_car(prior_parameters(narrow))))
+    for label, f in f0.items():
+        assert r_narrow[label][0] < f < r_narrow[label][1]
+        assert r_wide[label][0] <= r_narrow[label][0] and r_narrow[label][1] <= r_wide[label][1]
+        # a car at the priors' corners with every stiffness 5 % up moves its frequencies by
+        # at most 2.5 %: the narrow range is about +-5 % wide before its margin
+        assert r_narrow[label][1] / r_narrow[label][0] < 1.2 * MARGIN**2
+
+
+def test_without_a_prior_for_every_frequency_parameter_there_is_no_range(tmp_path):
+    partial = _campaign(tmp_path, {n: SEED_PRIOR_RANGES[n] for n in FREQUENCY_PARAMETERS if n != "J_b"})
+    assert prior_frequency_ranges(partial, prior_parameters(partial)) == {}
+
+
+def test_a_mode_outside_its_range_is_named_with_the_range_and_one_inside_passes():
+    ranges = {"carbody_bounce": (0.6, 1.4)}
+    why = outside("carbody_bounce", 3.8, ranges)
+    assert why is not None and "3.8 Hz" in why and "0.6-1.4 Hz" in why and "carbody_bounce" in why
+    assert outside("carbody_bounce", 0.93, ranges) is None
+    assert outside("bogie_bounce", 30.0, ranges) is None  # no range, no verdict
