@@ -15,10 +15,11 @@ from pathlib import Path
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
 from ...models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
+from ...identification.in_service import prior_parameters
 from ...models.vehicles import INTERCITY_TRAILER
 from .response import FIT_NAMES
 
-#: where a parameter missing from the calibration and the priors comes from
+#: where a parameter missing from the calibration and the priors comes from (prior_parameters' base)
 DEFAULT_CAR = INTERCITY_TRAILER
 DEFAULT_CAR_NAME = "the seed's intercity trailer car"
 
@@ -50,11 +51,6 @@ class BaselineStart:
     def to_json(self) -> dict:
         return {"source": self.source, "start": self.parameters.as_dict(), "defaults": list(self.defaults),
                 "widened": list(self.widened), "bounds": {k: list(v) for k, v in self.bounds.items()}}
-
-
-def _geometry(campaign: Campaign) -> dict[str, float]:
-    g = campaign.meta.geometry
-    return {name: g[key] for name, key in (("L_v", "bogie_semi_spacing"), ("L_b", "semi_wheelbase")) if key in g}
 
 
 def baseline_start(campaign: Campaign, spread: float, calibration: Mapping | None = None,
@@ -89,13 +85,10 @@ def baseline_start(campaign: Campaign, spread: float, calibration: Mapping | Non
             raise CampaignError("the diagnosis needs a baseline car: this campaign has no priors (campaign.toml "
                                 "[priors.*]) and no calibration was given (--calibration FILE from railcal "
                                 "calibrate)", path=campaign.root, key="priors")
-        values = {**{k: p.nominal for k, p in usable.items()}, **_geometry(campaign)}
-        try:
-            start = CarParameters.from_mapping(values, base=DEFAULT_CAR)
-        except ParameterError as e:
-            raise CampaignError(f"priors and vehicle geometry do not make a valid car: {e}",
-                                path=campaign.root / "campaign.toml", key="priors / vehicle") from None
-        defaults = tuple(n for n in CAR_PARAMETER_SPECS if n not in values)
+        start = prior_parameters(campaign)  # the priors' nominals and the geometry over DEFAULT_CAR
+        given = set(usable) | {n for n, key in (("L_v", "bogie_semi_spacing"), ("L_b", "semi_wheelbase"))
+                               if key in campaign.meta.geometry}
+        defaults = tuple(n for n in CAR_PARAMETER_SPECS if n not in given)
         source = "the campaign's priors (their nominals are the start, their ranges the search box)"
     bounds, widened = {}, []
     for n in FIT_NAMES:
