@@ -200,8 +200,9 @@ def mode_uncertainties(modes) -> dict[str, float]:
 
 
 def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", runs: int = 10, seed: int = 0,
-                       refine_result: bool = True, progress=None):
-    """Identify the campaign's modes, then calibrate the car to them within its priors.
+                       refine_result: bool = True, identified=None, progress=None):
+    """Identify the campaign's modes (``identified``: its identification made before, an
+    identification file's modes read back), then calibrate the car to them within its priors.
 
     The identifiability intervals use, per mode, the identification's standard error (a
     delete-one-journey jackknife) combined with a systematic floor of 0.5 %: the largest bias of the input-output estimate seen on
@@ -210,8 +211,8 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
     from .data.errors import CampaignError
     from .identification.in_service import identify_in_service, prior_parameters
 
-    ident = identify_in_service(campaign, progress=progress)
-    targets = {m.label: m.frequency_hz for m in ident.modes if m.label in LABELS}
+    modes = identify_in_service(campaign, progress=progress).modes if identified is None else tuple(identified)
+    targets = {m.label: m.frequency_hz for m in modes if m.label in LABELS}
     if len(targets) < 2:
         raise CampaignError(f"only {len(targets)} mode(s) identified; calibration needs at least two",
                             path=campaign.root)
@@ -222,5 +223,5 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
                             key="priors")
     base = prior_parameters(campaign)
     result = calibrate_car(targets, search, base=base, method=method, objective=objective, runs=runs, seed=seed,
-                           refine_result=refine_result, sigma_f=mode_uncertainties(ident.modes))
-    return result, ident
+                           refine_result=refine_result, sigma_f=mode_uncertainties(modes))
+    return result, modes

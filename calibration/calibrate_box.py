@@ -17,7 +17,8 @@ import numpy as np
 from . import checks
 from .data.campaign import Campaign, Sensor
 from .data.errors import InputError
-from .identification.excitation import ExcitationIdentification, ExcitationIdentifySettings, identify_excitation
+from .identification.excitation import (ExcitationIdentification, ExcitationIdentifySettings, IdentifiedShapes,
+                                        identify_excitation)
 from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, sensor_operator
@@ -49,7 +50,7 @@ class BoxCalibration:
     sensors: tuple[Sensor, ...] = ()  # the points the target shapes are given at
     exciter: Sensor | None = None  # where the force acted (the FMU's force input)
 
-    def to_json(self, ident: ExcitationIdentification | None = None) -> dict:
+    def to_json(self, ident: ExcitationIdentification | IdentifiedShapes | None = None) -> dict:
         """The calibration file; with the identification it was fitted to, its modes too
         (the FRF comparison takes their damping)."""
         out = {"model": "box", "method": "pso", "factor_set": self.factor_set, "parameters": self.parameters,
@@ -64,7 +65,7 @@ class BoxCalibration:
         if self.exciter is not None:
             out["exciter"] = point_record(self.exciter)
         if ident is not None:
-            out["identified_modes"] = ident.to_json()["modes"]
+            out["identified_modes"] = [m.to_json() for m in ident.modes]
         return out
 
 
@@ -361,15 +362,17 @@ def calibrate_box_campaign(campaign: Campaign, *,
                            swarm: SwarmSettings = SwarmSettings(swarms=CAMPAIGN_SWARMS, done_pct=CAMPAIGN_DONE_PCT),
                            refinement: RefineSettings = RefineSettings(),
                            identify: ExcitationIdentifySettings = ExcitationIdentifySettings(),
-                           order_change: int = 0, progress=None) -> tuple[BoxCalibration, ExcitationIdentification]:
+                           order_change: int = 0, identified: IdentifiedShapes | None = None,
+                           progress=None) -> tuple[BoxCalibration, ExcitationIdentification | IdentifiedShapes]:
     """Identify a stationary excitation campaign's modes and calibrate the box model to them
     (:func:`calibrate_box`; by default in CAMPAIGN_SWARMS swarms, done at CAMPAIGN_DONE_PCT);
     ``order_change``: added to every panel order of the model (negative: a coarse, fast model,
-    e.g. for a campaign synthesised on the same one)."""
+    e.g. for a campaign synthesised on the same one); ``identified``: the campaign's
+    identification made before (an identification file read back), not made again."""
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
-    ident = identify_excitation(campaign, identify)
+    ident = identify_excitation(campaign, identify) if identified is None else identified
     if not ident.modes:
         raise InputError("no mode identified in the analysis band; nothing to calibrate to",
                          path=campaign.root / "runs")

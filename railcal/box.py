@@ -10,7 +10,7 @@ from calibration.data.outputs import write_result
 from calibration.swarm_defaults import (CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_MIN_MAC, TYPED_POLISH_STEPS,
                                         TYPED_REFINE_ROUNDS, TYPED_SWARMS)
 
-from .common import campaign_of, names, progress_for
+from .common import campaign_of, names, progress_for, read_identification
 
 
 def identify(campaign, args, png: Path, second: Path) -> str:
@@ -18,7 +18,8 @@ def identify(campaign, args, png: Path, second: Path) -> str:
 
     result = identify_excitation(campaign)
     png, mac_png = result.plot(png, second)
-    write_result(args.out, {**result.to_json(), "plot": str(png), "plot_mac": str(mac_png)}, "identification")
+    write_result(args.out, {**result.to_json(), "campaign_sha256": campaign.fingerprint(), "plot": str(png),
+                            "plot_mac": str(mac_png)}, "identification")
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz ({100 * m.damping_ratio:.1f} %)" for m in result.modes)
     return (f"identified {len(result.modes)} modes ({modes}); {len(result.rejected)} peaks rejected; "
             f"{result.frf.n_averages} Welch segments over {result.records} records; wrote "
@@ -73,9 +74,14 @@ def calibrate(args) -> str:
             raise InputError(f"a campaign is calibrated over the grouped factor set (its priors name them), not "
                              f"{args.factors!r}", key="--factors")
         swarm = SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, done_pct=CAMPAIGN_DONE_PCT)
-        result, ident = calibrate_box_campaign(campaign_of(args), swarm=swarm,
-                                               refinement=RefineSettings(enabled=args.refine),
-                                               progress=progress_for(args))
+        campaign = campaign_of(args)
+        identified = None
+        if args.identification is not None:
+            from calibration.identification.excitation import IdentifiedShapes
+
+            identified = read_identification(args.identification, campaign, IdentifiedShapes.from_json)
+        result, ident = calibrate_box_campaign(campaign, swarm=swarm, refinement=RefineSettings(enabled=args.refine),
+                                               identified=identified, progress=progress_for(args))
         out = result.to_json(ident)
     else:
         result = _calibrate_typed_targets(args, settings, swarms)

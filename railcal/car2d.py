@@ -9,7 +9,7 @@ from calibration.data.errors import InputError
 from calibration.data.outputs import write_result
 from calibration.models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 
-from .common import campaign_of, names, progress_for
+from .common import campaign_of, names, progress_for, read_identification
 
 
 def parameters(calibration: dict, path) -> CarParameters:
@@ -26,7 +26,7 @@ def identify(campaign, args, png: Path, second: Path) -> str:
 
     settings = IdentifySettings(fdd=FDDSettings(seed=args.seed))
     result = identify_in_service(campaign, settings=settings, progress=progress_for(args))
-    out = result.to_json()
+    out = {**result.to_json(), "campaign_sha256": campaign.fingerprint()}
     png, spectra = result.plot(png, second)
     out["plot"] = str(png)
     out["plot_spectra"] = None if spectra is None else str(spectra)
@@ -82,11 +82,17 @@ def calibrate(args) -> str:
     if (args.campaign is None) == (args.targets is None):
         raise InputError("give either a CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
     if args.campaign is not None:
-        result, ident = calibrate_campaign(campaign_of(args), method=args.method, objective=args.objective,
+        campaign = campaign_of(args)
+        identified = None
+        if args.identification is not None:
+            from calibration.identification.in_service import identified_modes_from_json
+
+            identified = read_identification(args.identification, campaign, identified_modes_from_json)
+        result, modes = calibrate_campaign(campaign, method=args.method, objective=args.objective,
                                            runs=args.runs, seed=args.seed, refine_result=args.refine,
-                                           progress=progress_for(args))
+                                           identified=identified, progress=progress_for(args))
         out = result.to_json()
-        out["identified_modes"] = [m.to_json() for m in ident.modes]
+        out["identified_modes"] = [m.to_json() for m in modes]
         write_result(args.out, out, "calibration")
         return (f"calibrated to {len(result.targets)} identified modes: max error {result.max_error_pct:.3g} %; "
                 f"{result.identifiability['summary']}; wrote {args.out}")

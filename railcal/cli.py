@@ -121,10 +121,12 @@ def cmd_modes(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    check_outputs([args.out], inputs=[args.campaign, args.targets, args.priors])
+    check_outputs([args.out], inputs=[args.campaign, args.targets, args.priors, args.identification])
     model = model_named(args.model)
     if args.campaign is not None and args.priors is not None:
         raise InputError("a campaign brings its own [priors.NAME]; --priors goes with --targets", key="--priors")
+    if args.identification is not None and args.campaign is None:
+        raise InputError("--identification is a campaign's identification; give the CAMPAIGN too", key="--identification")
     print(model.calibrate(args))
     return EXIT_OK
 
@@ -296,6 +298,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --targets: TOML with [NAME] nominal, low, high (default: with --model car2d --method "
                         "ce the in-service seed's Table 7 ranges of the intercity trailer car; --method pso needs "
                         "this file; with --model box each factor's own range); a campaign brings its own priors")
+    s.add_argument("--identification", default=None, metavar="F",
+                   help="with a CAMPAIGN: its identification made before (railcal identify --out F), calibrated "
+                        "to as it is instead of identifying again; refused if made from other files (default: "
+                        "none, identify the campaign first)")
     s.add_argument("--model", choices=tuple(MODELS), default="car2d", help="model to calibrate")
     s.add_argument("--method", choices=("ce", "pso"), default="ce",
                    help="global search: Cross-Entropy or particle swarm")

@@ -69,3 +69,24 @@ def track_for_crosscheck(args):
 
     s, z, _ = smooth_profile(args.speed * args.duration + 60.0, seed=3)
     return s, z
+
+
+def read_identification(path, campaign, parse):
+    """``parse(data)`` of an identification file (railcal identify --out) made from
+    ``campaign`` as it is now, or exit 2 naming the file: its kind must be the campaign's
+    and its recorded fingerprint the campaign's files'
+    (:meth:`~calibration.data.campaign.Campaign.fingerprint`)."""
+    path = Path(path)
+    data = read_result(path, ("identification",))
+    if data.get("kind") != campaign.meta.kind:
+        raise InputError(f"an identification of a {data.get('kind')!r} campaign, not of this {campaign.meta.kind} "
+                         "one", path=path, key="kind")
+    recorded = data.get("campaign_sha256")
+    if recorded is None:
+        raise InputError("records no campaign fingerprint (made by an older railcal): run railcal identify again",
+                         path=path, key="campaign_sha256")
+    if recorded != campaign.fingerprint():
+        raise InputError(f"made from another campaign than {campaign.root}, or from this one before its files "
+                         "changed: run railcal identify on it again", path=path, key="campaign_sha256")
+    with about_calibration(path):
+        return parse(data)

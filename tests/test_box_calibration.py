@@ -506,3 +506,19 @@ def test_identify_writes_modes_and_plots_for_a_shaker_campaign(shaker, tmp_path)
     assert data["kind"] == "stationary_excitation" and data["modes"]
     assert {"label", "frequency_hz", "damping_ratio", "shape_real", "shape_imag"} <= set(data["modes"][0])
     assert (tmp_path / "id.png").exists() and (tmp_path / "id_mac.png").exists()
+
+
+def test_an_identification_file_read_back_is_its_modes_and_bad_shapes_are_refused():
+    """Read back, the file's modes are the identification's (complex shapes at its sensors);
+    a shape of the wrong length or not a number is exit 2 naming the mode."""
+    from calibration.data.errors import InputError
+    from calibration.identification.excitation import ExcitationMode, IdentifiedShapes
+
+    mode = ExcitationMode("mode_1", 9.9, 0.012, np.array([1.0, 0.5 - 0.25j, -0.3j]), 12, 9.91)
+    data = json.loads(json.dumps({"sensors": ["a", "b", "c"], "modes": [mode.to_json()]}))
+    back = IdentifiedShapes.from_json(data)
+    assert back.sensors == ("a", "b", "c") and back.modes[0].to_json() == mode.to_json()
+    for change in ({"shape_imag": [0.0, 0.0]}, {"shape_real": ["x", 1, 2]}, {"frequency_hz": -1.0},
+                   {"shape_real": [0, 0, 0], "shape_imag": [0, 0, 0]}):
+        with pytest.raises(InputError, match=r"modes\[0\]"):
+            IdentifiedShapes.from_json({**data, "modes": [{**data["modes"][0], **change}]})

@@ -4,6 +4,7 @@ import json
 import numpy as np
 import pytest
 
+from calibration.data.campaign import open_campaign
 from calibration.calibrate import calibrate_car
 from railcal.cli import main
 from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
@@ -127,6 +128,38 @@ def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_c
         lo, hi = d["interval_95_log"]
         assert lo <= np.array(d["vector"]) @ x <= hi
     assert "calibrated to 4 identified modes" in capsys.readouterr().out
+    # from the identification file, the same calibration without identifying again
+    ident, again = tmp_path / "ident.json", tmp_path / "again.json"
+    assert main(["identify", str(root), "--quiet", "--out", str(ident)]) == 0
+    assert main(["calibrate", str(root), "--identification", str(ident), "--refine", "--runs", "1", "--quiet",
+                 "--out", str(again)]) == 0
+    assert json.loads(again.read_text())["parameters"] == data["parameters"]
+    assert json.loads(again.read_text())["identified_modes"] == data["identified_modes"]
+
+
+def test_calibrate_refuses_an_identification_of_other_files(synthetic_campaign, tmp_path, capsys):
+    """An identification file is taken only for the campaign it was made from, as it is."""
+    import shutil
+
+    root, _ = synthetic_campaign
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    ident = {"format": "railcal-identification/1", "kind": "in_service", "modes": [],
+             "campaign_sha256": open_campaign(copy).fingerprint()}
+    path = tmp_path / "ident.json"
+    path.write_text(json.dumps(ident))
+    out = tmp_path / "c.json"
+    run = ["calibrate", str(copy), "--identification", str(path), "--quiet", "--out", str(out)]
+    assert main(run) == 2 and "at least two" in capsys.readouterr().err  # accepted: no modes in it
+    (copy / "runs" / sorted(p.name for p in (copy / "runs").iterdir())[0]).write_bytes(b"changed")
+    assert main(run) == 2 and "campaign_sha256" in capsys.readouterr().err
+    for change, key in (({"campaign_sha256": None}, "campaign_sha256"), ({"kind": "stationary_excitation"}, "kind"),
+                        ({"format": "railcal-calibration/1"}, "format")):
+        path.write_text(json.dumps({**ident, **change}))
+        assert main(run) == 2 and key in capsys.readouterr().err
+    assert main(["calibrate", "--targets", str(path), "--identification", str(path), "--out", str(out)]) == 2
+    assert "give the CAMPAIGN too" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_calibrate_needs_exactly_one_of_campaign_or_targets(tmp_path, capsys):

@@ -25,6 +25,7 @@ file's content (:func:`~calibration.data.errors.excerpt`).
 from __future__ import annotations
 
 import collections
+import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,6 +70,19 @@ class Campaign:
     @property
     def run_ids(self) -> tuple[str, ...]:
         return tuple(p.stem for p in self.run_paths)
+
+    def fingerprint(self) -> str:
+        """SHA-256 of campaign.toml and every run and track file, names and bytes: a result
+        made from this campaign carries it, so that one made from another campaign (or from
+        this one before its files changed) is refused where it is read back."""
+        h = hashlib.sha256()
+        for path in (self.root / "campaign.toml", *sorted(self.run_paths), *sorted(self.track_paths)):
+            h.update(path.name.encode() + b"\0")
+            with open(path, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
+            h.update(b"\0")
+        return "sha256:" + h.hexdigest()
 
     def read_run(self, run_id: str) -> Run:
         for p in self.run_paths:

@@ -24,7 +24,7 @@ import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 import tomli_w
 
-from .errors import CampaignError, InputError
+from .errors import CampaignError, InputError, quoted
 from .files import read_input_file
 from .metadata import NAME_RE, CampaignMeta
 from .tracks import TRACK_BANDS
@@ -354,6 +354,19 @@ def read_result(path, kinds: Iterable[str]) -> dict:
         raise InputError(f"format {shown} is not one this railcal reads ({', '.join(known)})", path=path,
                          key="format")
     return obj
+
+
+def result_number(row: dict, key: str, where: str, *, optional: bool = False, positive: bool = False):
+    """``row[key]`` of a JSON result read back, as a finite float (None if ``optional`` and
+    absent or null), or :class:`InputError` keyed ``where.key``."""
+    value = row.get(key) if isinstance(row, dict) else None
+    if value is None and optional:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
+            or (positive and not value > 0):
+        raise InputError(f"expected a finite{' positive' if positive else ''} number, got {quoted(value)}",
+                         key=f"{where}.{key}")
+    return float(value)
 
 
 def save_figure(fig, path) -> Path:

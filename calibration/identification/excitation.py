@@ -25,7 +25,8 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from .. import checks
-from ..data.errors import InputError
+from ..data.errors import InputError, excerpt
+from ..data.outputs import result_number
 from ..signals.modal import mac_matrix
 from . import ema
 
@@ -65,6 +66,51 @@ class ExcitationMode:
     peak_picking_hz: float | None  # the baseline's nearest peak, if within 1 %
 
 
+    def to_json(self) -> dict:
+        return {"label": self.label, "frequency_hz": self.frequency_hz, "damping_ratio": self.damping_ratio,
+                "n_stable": self.n_stable, "peak_picking_hz": self.peak_picking_hz,
+                "shape_real": self.shape.real.tolist(), "shape_imag": self.shape.imag.tolist()}
+
+    @classmethod
+    def from_json(cls, row: dict, where: str, n_sensors: int) -> "ExcitationMode":
+        """A mode of an identification file read back (``where``: its key there, for errors)."""
+        if not isinstance(row, dict) or not isinstance(row.get("label"), str):
+            raise InputError(f"a mode needs a text label, got {excerpt(repr(row))}", key=where)
+        try:
+            shape = np.asarray(row.get("shape_real"), float) + 1j * np.asarray(row.get("shape_imag"), float)
+        except (TypeError, ValueError):
+            shape = np.array([])
+        if shape.shape != (n_sensors,) or not np.all(np.isfinite(shape)) or not np.any(shape):
+            raise InputError(f"shape_real and shape_imag must be {n_sensors} finite numbers (one per sensor), "
+                             "not all zero", key=where)
+        n_stable = row.get("n_stable", 0)
+        return cls(label=row["label"], frequency_hz=result_number(row, "frequency_hz", where, positive=True),
+                   damping_ratio=result_number(row, "damping_ratio", where, optional=True), shape=shape,
+                   n_stable=n_stable if isinstance(n_stable, int) else 0,
+                   peak_picking_hz=result_number(row, "peak_picking_hz", where, optional=True))
+
+
+@dataclass(frozen=True)
+class IdentifiedShapes:
+    """What calibration takes of an excitation test's identification: the sensors and the
+    modes with their shapes there (an :class:`ExcitationIdentification`, or an identification
+    file read back by :meth:`from_json`)."""
+
+    sensors: tuple[str, ...]
+    modes: tuple[ExcitationMode, ...]
+
+    @classmethod
+    def from_json(cls, data: dict) -> "IdentifiedShapes":
+        sensors = data.get("sensors")
+        if not isinstance(sensors, list) or not sensors or not all(isinstance(n, str) for n in sensors):
+            raise InputError("expected the list of sensor names the shapes are given at", key="sensors")
+        rows = data.get("modes")
+        if not isinstance(rows, list):
+            raise InputError("expected a list of modes", key="modes")
+        return cls(tuple(sensors), tuple(ExcitationMode.from_json(r, f"modes[{i}]", len(sensors))
+                                         for i, r in enumerate(rows)))
+
+
 @dataclass(frozen=True, eq=False)
 class ExcitationIdentification:
     sensors: tuple[str, ...]
@@ -101,10 +147,7 @@ class ExcitationIdentification:
             "method": "H1 + p-LSCF stabilisation diagram (shapes: numerators at the poles); peak picking as baseline",
             "band_hz": list(self.settings.band),
             "sensors": list(self.sensors),
-            "modes": [{"label": m.label, "frequency_hz": m.frequency_hz, "damping_ratio": m.damping_ratio,
-                       "n_stable": m.n_stable, "peak_picking_hz": m.peak_picking_hz,
-                       "shape_real": m.shape.real.tolist(), "shape_imag": m.shape.imag.tolist()}
-                      for m in self.modes],
+            "modes": [m.to_json() for m in self.modes],
             "rejected_peaks": list(self.rejected),
             "auto_mac": self.auto_mac().tolist(),
             "frf": {"welch_segments": self.frf.n_averages, "records": self.records,

@@ -33,7 +33,8 @@ import warnings
 
 from .. import checks
 from ..data.campaign import Campaign
-from ..data.errors import CampaignError
+from ..data.errors import CampaignError, InputError, excerpt
+from ..data.outputs import result_number
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
@@ -87,6 +88,25 @@ class IdentifiedMode:
 
     def to_json(self) -> dict:
         return dict(self.__dict__)
+
+    @classmethod
+    def from_json(cls, row: dict, where: str) -> "IdentifiedMode":
+        """A mode of an identification file read back (``where``: its key there, for errors)."""
+        if not isinstance(row, dict) or not isinstance(row.get("label"), str):
+            raise InputError(f"a mode needs a text label, got {excerpt(repr(row))}", key=where)
+        number = {k: result_number(row, k, where, optional=k != "frequency_hz", positive=k != "damping_ratio")
+                  for k in ("frequency_hz", "damping_ratio", "damped_frequency_hz", "fdd_peak_hz", "prior_hz")}
+        std = result_number(row, "frequency_std_hz", where, optional=True)
+        return cls(label=row["label"], method=str(row.get("method", "")), source=str(row.get("source", "")),
+                   frequency_std_hz=std, **number)
+
+
+def identified_modes_from_json(data: dict) -> tuple[IdentifiedMode, ...]:
+    """The modes of an identification file read back."""
+    rows = data.get("modes")
+    if not isinstance(rows, list):
+        raise InputError("expected a list of modes", key="modes")
+    return tuple(IdentifiedMode.from_json(r, f"modes[{i}]") for i, r in enumerate(rows))
 
 
 @dataclass(frozen=True)
