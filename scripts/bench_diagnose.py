@@ -114,6 +114,7 @@ def run_case(case: dict) -> dict:
             "extension": diag.best and diag.best.parameters,
             "truth_details": truth["effect"] and truth["effect"]["details"],
             "hypotheses": {h.name: h.gain for h in diag.hypotheses},
+            "findings": diag.to_json()["findings"],
             "systematic_left": {h.name: h.systematic_left for h in diag.hypotheses if h.systematic_left is not None},
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
@@ -242,26 +243,42 @@ def run_exudyn_case(c: dict) -> dict:
     settings = IndependentSettings(journeys=c["journeys"], line=IndependentLine(length=c["length_km"] * 1000.0),
                                    carbody_sensors=c["carbody_sensors"])
     t0 = time.perf_counter()
-    truth = synth_in_service_independent(root, seed=c["seed"], settings=settings, effect=parse_hidden(c["effect"]),
-                                         vehicle=c["vehicle"], fmt="parquet")
+    made_for = Path(f"{root}.bench.json")  # what a kept campaign was made for
+    if c["keep"] and made_for.exists() and json.loads(made_for.read_text()) == _made_for(c):
+        truth = json.loads(Path(f"{root}.truth.json").read_text())  # kept by an earlier run: diagnosed again
+    else:
+        made_for.unlink(missing_ok=True)
+        truth = synth_in_service_independent(root, seed=c["seed"], settings=settings,
+                                             effect=parse_hidden(c["effect"]), vehicle=c["vehicle"], fmt="parquet",
+                                             overwrite=True)
+        if c["keep"]:
+            made_for.write_text(json.dumps(_made_for(c)))
     t1 = time.perf_counter()
     try:
         diag = diagnose_in_service(open_campaign(root))
     except Exception as exc:  # a campaign the diagnosis refuses is an outcome to report, not a reason to stop
-        shutil.rmtree(root, ignore_errors=True)
+        if not c["keep"]:
+            shutil.rmtree(root, ignore_errors=True)
         return {**c, "diagnosed": f"error: {type(exc).__name__}", "answer": "error", "verdict": "missed",
                 "summary": [str(exc)], "gain": None, "hypotheses": {}, "truth_effect": truth["effect"],
                 "synth_s": t1 - t0, "diagnose_s": time.perf_counter() - t1}
     t2 = time.perf_counter()
-    shutil.rmtree(root, ignore_errors=True)
+    if not c["keep"]:
+        shutil.rmtree(root, ignore_errors=True)
     answer = _answer(diag.cause, diag.summary, case.hidden)
     return {**c, "diagnosed": diag.cause, "answer": answer, "verdict": verdict(case, answer),
             "summary": list(diag.summary), "gain": diag.to_json()["gain"],
             "extension": diag.best and diag.best.parameters, "truth_effect": truth["effect"],
             "hypotheses": {h.name: h.gain for h in diag.hypotheses},
+            "findings": diag.to_json()["findings"],
             "baseline_at_bounds": list(diag.baseline.at_bounds),
             "real_time_factor": truth["performance"]["real_time_factor"],
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
+
+
+def _made_for(c: dict) -> dict:
+    """What makes bench campaign ``c``: a kept campaign made for the same is diagnosed again."""
+    return {k: c[k] for k in ("seed", "vehicle", "journeys", "length_km", "carbody_sensors", "effect")}
 
 
 def _rate(k: int, n: int) -> str:
@@ -345,9 +362,14 @@ def main_exudyn(args) -> int:
     if args.list:
         return 0
     out = Path(args.out or "bench_diagnose_exudyn.json")
-    folder = tempfile.mkdtemp(prefix="railcal_bench_diagnose_exudyn_")
+    if args.keep:
+        folder = str(Path(args.keep).resolve())
+        Path(folder).mkdir(parents=True, exist_ok=True)
+    else:
+        folder = tempfile.mkdtemp(prefix="railcal_bench_diagnose_exudyn_")
     for c in campaigns:
-        c.update(folder=folder, journeys=args.journeys, length_km=args.length_km, vehicle=args.vehicle)
+        c.update(folder=folder, journeys=args.journeys, length_km=args.length_km, vehicle=args.vehicle,
+                 keep=bool(args.keep))
     results = []
     t0 = time.perf_counter()
     with Pool(args.jobs) as pool:
@@ -358,7 +380,8 @@ def main_exudyn(args) -> int:
                   f"{r['diagnosed']} [{r['verdict']}]{gain} (synth {r['synth_s']:.0f} s, diagnosis "
                   f"{r['diagnose_s']:.0f} s)", flush=True)
             out.write_text(json.dumps(results, indent=1))  # each campaign kept as it arrives
-    shutil.rmtree(folder, ignore_errors=True)
+    if not args.keep:
+        shutil.rmtree(folder, ignore_errors=True)
     _report_exudyn(sorted(results, key=lambda r: r["seed"]), args)
     print(f"whole bench {(time.perf_counter() - t0) / 60:.1f} min; wrote {out}")
     return 0
@@ -379,6 +402,9 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=None, help="exudyn: run this case only (see --list)")
     ap.add_argument("--list", action="store_true", help="exudyn: print the campaigns and their seeds, run nothing")
     ap.add_argument("--vehicle", default="intercity", choices=sorted(VEHICLES), help="exudyn: the library vehicle")
+    ap.add_argument("--keep", default=None, metavar="DIR",
+                    help="exudyn: keep the campaigns in DIR, and diagnose a campaign already there (made by an "
+                         "earlier run for the same seed, effect, vehicle and size) without making it again")
     args = ap.parse_args(argv)
     if args.truth == "exudyn":
         return main_exudyn(args)

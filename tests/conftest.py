@@ -86,7 +86,7 @@ def _cost(item) -> float:
 
 #: the session fixtures of :data:`SLOW_FIXTURES`: the files using one are one group, so that
 #: one worker builds it once (each xdist worker has its own session)
-SESSION_SLOW_FIXTURES = ("synthetic_campaign", "car_fmus")
+SESSION_SLOW_FIXTURES = ("synthetic_campaign", "synthetic_identification", "car_fmus")
 
 
 def _files_sharing_session_fixtures(items) -> dict[str, str]:
@@ -144,6 +144,22 @@ def synthetic_campaign(tmp_path_factory):
     truth = synth_in_service(root, seed=11, settings=InServiceSettings(journeys=6, line=LineSpec(length=24_000.0)),
                              fmt="parquet")
     return root, truth
+
+
+@pytest.fixture(scope="session")
+def synthetic_identification(synthetic_campaign, tmp_path_factory):
+    """``railcal identify`` run once on the synthetic campaign: (its --out path, the
+    one-line summary it printed)."""
+    import contextlib
+    import io
+
+    from railcal.cli import main
+
+    out = tmp_path_factory.mktemp("identified") / "new_folder" / "ident.json"  # a missing folder is created
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert main(["identify", str(synthetic_campaign[0]), "--out", str(out), "--quiet"]) == 0
+    return out, printed.getvalue()
 
 
 COARSE_BOX_ORDERS = -4  # every panel order - 4: the shaker-test files stay fast, the physics is the same

@@ -114,7 +114,8 @@ def test_refinement_never_returns_worse_than_its_start():
     assert np.all(r.parameters >= low) and np.all(r.parameters <= high)
 
 
-def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_campaign, tmp_path, capsys):
+def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_campaign, synthetic_identification,
+                                                                     tmp_path, capsys):
     root, truth = synthetic_campaign
     out = tmp_path / "cal.json"
     assert main(["calibrate", str(root), "--refine", "--runs", "1", "--quiet", "--out", str(out)]) == 0
@@ -129,8 +130,7 @@ def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_c
         assert lo <= np.array(d["vector"]) @ x <= hi
     assert "calibrated to 4 identified modes" in capsys.readouterr().out
     # from the identification file, the same calibration without identifying again
-    ident, again = tmp_path / "ident.json", tmp_path / "again.json"
-    assert main(["identify", str(root), "--quiet", "--out", str(ident)]) == 0
+    ident, again = synthetic_identification[0], tmp_path / "again.json"
     assert main(["calibrate", str(root), "--identification", str(ident), "--refine", "--runs", "1", "--quiet",
                  "--out", str(again)]) == 0
     assert json.loads(again.read_text())["parameters"] == data["parameters"]

@@ -68,10 +68,8 @@ def test_trailing_rail_is_the_leading_rail_seen_2_L_v_later(synthetic_campaign):
     np.testing.assert_allclose(x_trail[ok], expected[ok], rtol=1e-9, atol=1e-9)
 
 
-def test_identify_command_writes_modes_and_rejected_peaks(synthetic_campaign, tmp_path, capsys):
-    root, _ = synthetic_campaign
-    out = tmp_path / "new_folder" / "ident.json"  # a missing output folder is created
-    assert main(["identify", str(root), "--out", str(out), "--quiet"]) == 0
+def test_identify_command_writes_modes_and_rejected_peaks(synthetic_identification):
+    out, printed = synthetic_identification  # into a folder that did not exist
     data = json.loads(out.read_text())
     assert {m["label"] for m in data["modes"]} == set(RIGID_LABELS)
     assert all({"label", "frequency_hz"} <= set(m) for m in data["modes"])
@@ -79,7 +77,7 @@ def test_identify_command_writes_modes_and_rejected_peaks(synthetic_campaign, tm
     assert (out.parent / "ident.png").stat().st_size > 10_000
     assert (out.parent / "ident_spectra.png").stat().st_size > 10_000
     assert not list(out.parent.glob(".*partial*"))
-    assert "identified 4 modes" in capsys.readouterr().out
+    assert "identified 4 modes" in printed
 
 
 def test_modes_command_reports_labelled_frequencies(tmp_path, capsys):

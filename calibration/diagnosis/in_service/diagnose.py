@@ -13,16 +13,22 @@ the cause, the extended model and the gain.
 4. **Hypotheses.** Every extension of :data:`.extensions.EXTENSIONS` is scored by the
    evidence that speaks for it and ranked; the leading ones are fitted and judged on
    held-out data (:mod:`.hypotheses`).
-5. **Decision.** The best hypothesis whose penalised gain exceeds ``min_gain``, that
-   makes no held-out channel worse by more than ``max_loss`` of its error (unless that
-   worsening is under ``max_loss`` of what the hypothesis gains on its best channel, in
-   the same units) and, for a response extension, that explains the systematic residual
-   on the channel it gains on (held-out error times the residual's coherence with the
-   rail input falls to ``max_systematic_left`` of the baseline's or below: an extension
-   that only rescales what it cannot model, e.g. a gyro gain against a bogie resonance,
-   leaves the residual as coherent as before) is the cause. Otherwise ``none`` when the
-   evidence shows nothing systematic (residual input-coherence, peaks and lines all below
-   their thresholds), or ``unexplained`` with the evidence.
+5. **Decision** (:mod:`.selection`). A hypothesis *passes* when its penalised gain
+   exceeds ``min_gain``, it makes no held-out channel worse by more than ``max_loss`` of
+   its error (unless that worsening is under ``max_loss`` of what the hypothesis gains on
+   its best channel, in the same units) and, for a response extension, it explains the
+   systematic residual on the channel it gains on (held-out error times the residual's
+   coherence with the rail input falls to ``max_systematic_left`` of the baseline's or
+   below: an extension that only rescales what it cannot model, e.g. a gyro gain against a
+   bogie resonance, leaves the residual as coherent as before). The rail side (track), the
+   wheels and the vehicle are decided apart; on the vehicle, response extensions are
+   added one after the other while one passes on top of those found. A passing extension
+   fitted at a size every vehicle or track has (a carbody bending above 12 Hz, a track
+   stiffer than 80 MN/m per wheelset) is a property, kept and reported, not a cause. The
+   causes, joined by ``+``, are the answer; without one, ``none`` when what is left shows
+   nothing systematic (residual input-coherence, peaks and lines all below their
+   thresholds once the properties are in the model), else ``unexplained`` with the
+   evidence.
 6. **Detectability** (:mod:`.detectability`): for every extension, the weakest effect this
    campaign could have named, predicted at the baseline fit; ``none`` lists them ("no
    effect above these sizes") and names effects the sensor set cannot observe.
@@ -50,6 +56,7 @@ from .hypotheses import Hypothesis, fit_hypothesis
 from .records import Record, layout, read_records, statistics
 from .response import fit_response
 from .result import InServiceDiagnosis
+from .selection import Selection, select
 from .settings import DiagnosisSettings
 
 
@@ -112,44 +119,51 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         stages.update()
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
-    ok = [h for h in hyps if h.penalised_gain >= settings.min_gain and not h.losses
-          and not h.leaves_systematic(settings)]
-    words = alarms(ev, settings)
-    if ok:
-        best = max(ok, key=lambda h: h.penalised_gain)
-        cause = best.name
-    else:
-        best = None
-        cause = "unexplained" if words else "none"
-    summary = _summary(cause, best, words, ev, hyps, settings, detect) + start.describe()
+    sel = select(data, hyps, base_fit, ev, say)
+    words = alarms(sel.evidence_left(data, ev), settings)
+    cause = sel.cause_name() or ("unexplained" if words else "none")
+    best = None
+    if sel.causes:  # the extended model: every vehicle finding together, else the rail or wheel cause
+        vehicle_cause = any(f.hypothesis.kind == "response" for f in sel.causes)
+        best = sel.vehicle_hypothesis if vehicle_cause else max((f.hypothesis for f in sel.causes),
+                                                                key=lambda h: h.penalised_gain)
+    summary = _summary(cause, sel, words, ev, hyps, settings, detect) + start.describe()
     stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped
     stages.close()
     return InServiceDiagnosis(
         campaign=campaign.root, cause=cause, summary=tuple(summary), evidence=ev, hypotheses=tuple(hyps), best=best,
         baseline=base_fit, start=start, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
         heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats,
-        detectability=detect)
+        detectability=detect, findings=sel.findings)
 
 
-def _summary(cause: str, best: Hypothesis | None, alarm_words: list[str], ev: Evidence, hyps: list[Hypothesis],
+def _values(parameters: dict) -> str:
+    return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in parameters.items())
+
+
+def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, hyps: list[Hypothesis],
              s: DiagnosisSettings, detect: Detectability) -> list[str]:
-    """The diagnosis in words: the cause (``none`` with the smallest effects this campaign
-    could have detected, :mod:`.detectability`), the alarms, the hypotheses that gained but
-    were not named and why, all hypotheses by gain, the baseline's parameters at bounds."""
+    """The diagnosis in words: the causes (``none`` with the smallest effects this campaign
+    could have detected, :mod:`.detectability`), the properties found, the alarms left, the
+    hypotheses that gained but were not named and why, all hypotheses by gain, the
+    baseline's parameters at bounds."""
     out = []
-    if best is not None:
-        out.append(f"cause: {cause} ({best.extension.description}); held-out error on {best.best_channel} "
-                   f"reduced by {best.gain:.0%}")
-        out.append("extension parameters: " + ", ".join(
-            f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in best.parameters.items()))
-    elif cause == "unexplained":
+    for f in sel.causes:
+        out.append(f"cause: {f.name} ({EXTENSIONS[f.name].description}); held-out error on {f.best_channel} "
+                   f"reduced by {f.gain:.0%}; {_values(f.parameters)}")
+    if not sel.causes and cause == "unexplained":
         out.append("unexplained: the baseline leaves systematic residuals and no extension in the registry "
                    "reduces the held-out error enough")
-    else:
+    elif not sel.causes:
         out.append("none: no effect above these sizes: " + detect.words())
+    for f in sel.properties:
+        name, bound = EXTENSIONS[f.name].normal_above
+        out.append(f"property, not a cause: {f.name} with {_values(f.parameters)} ({name} above {bound:.4g}, "
+                   f"the catalogue's fault range; kept in the model, it gains {f.gain:.0%} on {f.best_channel})")
     out += alarm_words
+    found = [f.hypothesis for f in sel.findings]
     for h in hyps:
-        if h is best or h.penalised_gain < s.min_gain:
+        if any(h is x for x in found) or h.penalised_gain < s.min_gain:
             continue
         if h.losses:
             worse = ", ".join(f"{n} ({h.heldout_error[n]['before']:.3g} -> {h.heldout_error[n]['after']:.3g})"

@@ -65,6 +65,17 @@ class Hypothesis:
                 "worst_change": self.worst_change, "losses": list(self.losses),
                 "penalised_gain": self.penalised_gain, "evidence_score": self.evidence_score}
 
+    def passes(self, s: DiagnosisSettings) -> bool:
+        """Does it gain enough on held-out data, lose on no channel and (a response
+        extension) explain the systematic residual it gains on?"""
+        return self.penalised_gain >= s.min_gain and not self.losses and not self.leaves_systematic(s)
+
+    @property
+    def is_property(self) -> bool:
+        """Do its fitted parameters describe a normal vehicle's or track's property
+        (:meth:`.extensions.Extension.is_property`) rather than a fault?"""
+        return self.extension.is_property(self.parameters)
+
     def leaves_systematic(self, s: DiagnosisSettings) -> bool:
         """Does this response extension leave more of the systematic residual on its best
         channel than ``max_systematic_left``, i.e. not explain it? (False for other kinds.)"""
@@ -100,15 +111,21 @@ def _extras_json(ex: CarExtras) -> dict:
 
 
 def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, ev: Evidence,
-                   score: float) -> Hypothesis:
+                   score: float, *, added_to: Hypothesis | None = None) -> Hypothesis:
     """Fit extension ``ext`` on the training runs and judge it on held-out data against the
-    baseline ``base_fit`` (its evidence ``ev``; ``score`` what spoke for the extension)."""
+    baseline ``base_fit`` (its evidence ``ev``; ``score`` what spoke for the extension).
+    ``added_to``: a response hypothesis found before, of which ``ext`` is the combination
+    with one more extension (:func:`.extensions.combined`): fitted from that hypothesis's
+    fit and judged against it, the penalty counting the added parameters only."""
     s, stats = data.settings, data.stats
     spectrum = None
+    n_params = ext.n_params
     if ext.kind == "response":
-        fit = fit_response(stats, data.layout, data.keys(data.train), base_fit.parameters, data.bounds,
-                           ext_params=ext.params, make=ext.make, starts=s.starts)
-        before = response_errors(data, base_fit, ev.masks)
+        prev = base_fit if added_to is None else added_to.fit
+        fit = fit_response(stats, data.layout, data.keys(data.train), prev.parameters, data.bounds,
+                           ext_params=ext.params, make=ext.make, starts=s.starts,
+                           known=None if added_to is None else prev.values)
+        before = response_errors(data, prev, ev.masks)
         after = response_errors(data, fit, ev.masks)
         names = data.layout.response_names
         params = fit.values
@@ -116,7 +133,10 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
                  "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}}
         at = [n for n in fit.at_bounds if n in params]
         left, _ = channel_evidence(data, fit, ev.masks)
-        residual = {n: {"before": systematic(ev.channels[n]), "after": systematic(left[n])} for n in names}
+        was = ev.channels if added_to is None else channel_evidence(data, prev, ev.masks)[0]
+        residual = {n: {"before": systematic(was[n]), "after": systematic(left[n])} for n in names}
+        if added_to is not None:
+            n_params -= added_to.extension.n_params
     elif ext.kind == "wheel":
         fit = fit_polygon(data.records, data.rows, data.train, s.wheels)
         before = np.array([polygon_error(data.records, data.rows, data.test, None, s.wheels)])
@@ -161,4 +181,4 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         residual=residual, systematic_left=left, best_channel=names[best], gain=gain,
         worst_change=float(np.nanmin(red)) if seen.any() else 0.0,
         losses=tuple(heldout_losses(names, before, after, best, s.max_loss)),
-        penalised_gain=gain - s.penalty * ext.n_params, fit=fit, heldout_line_spectrum=spectrum)
+        penalised_gain=gain - s.penalty * n_params, fit=fit, heldout_line_spectrum=spectrum)

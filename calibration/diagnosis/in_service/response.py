@@ -13,6 +13,8 @@ the square roots of the per-band residual powers, each channel normalised by its
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -166,25 +168,29 @@ class _Problem:
 
 def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict, *,
                  ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6,
-                 rng: np.random.Generator | None = None) -> ResponseFit:
+                 known: Mapping[str, float] | None = None, rng: np.random.Generator | None = None) -> ResponseFit:
     """Fit the baseline parameters in ``bounds`` ({name: (low, high)}) and the extension
     parameters ``ext_params`` (``make(values) -> (CarExtras, SensorModel)``) to the training
     statistics. Without an extension: one least-squares fit from ``base``. With one: a
     global stage (``starts`` starts of the extension parameters, a Latin hypercube over
-    their box, baseline held at ``base``), then the best refined jointly with the baseline."""
+    their box, baseline held at ``base``), then the best refined jointly with the baseline.
+    ``known``: extension parameters already fitted (an extension found before this one),
+    which start at these values and take no part in the global stage."""
     rng = np.random.default_rng(0) if rng is None else rng
+    known = dict(known or {})
     pr = _Problem(stats, lay, train_keys, base, bounds, ext_params, make)
     nb, n = pr.nb, len(pr.ranges)
     mid = {r.name: (np.sqrt(r.low * r.high) if r.log else 0.5 * (r.low + r.high)) for r in ext_params}
-    x_base = pr.x_of({**base.as_dict(), **mid})
-    if ext_params:
-        k = len(ext_params)
+    x_base = pr.x_of({**base.as_dict(), **mid, **known})
+    searched = np.array([i >= nb and r.name not in known for i, r in enumerate(pr.ranges)])
+    if searched.any():
+        k = int(searched.sum())
         u = (rng.permuted(np.tile(np.arange(starts), (k, 1)), axis=1).T + rng.uniform(size=(starts, k))) / starts
         best = None
         for row in u:
             x0 = x_base.copy()
-            x0[nb:] = pr.lo[nb:] + row * (pr.hi[nb:] - pr.lo[nb:])
-            x, cost = pr.solve(x0, np.arange(n) >= nb)
+            x0[searched] = pr.lo[searched] + row * (pr.hi[searched] - pr.lo[searched])
+            x, cost = pr.solve(x0, searched)
             if best is None or cost < best[1]:
                 best = (x, cost)
         x_base = best[0]

@@ -13,6 +13,7 @@ from .evidence import Evidence
 from .hypotheses import Hypothesis
 from .records import Layout, Statistics
 from .response import ResponseFit
+from .selection import Finding
 from .settings import DiagnosisSettings
 
 FORMAT = "railcal-diagnosis/1"
@@ -43,6 +44,7 @@ class InServiceDiagnosis:
     layout: Layout
     statistics: Statistics  # the band statistics every error and figure is computed from
     detectability: Detectability  # each extension's weakest detectable effect on this campaign
+    findings: tuple[Finding, ...] = ()  # causes and properties, in the order found (:mod:`.selection`)
 
     def to_json(self) -> dict:
         """The result as JSON values (a new dict on each call): ``format``, ``campaign``,
@@ -68,6 +70,7 @@ class InServiceDiagnosis:
             "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
                          "max_systematic_left": s.max_systematic_left},
             "detectability": self.detectability.to_json(),
+            "findings": [f.to_json() for f in self.findings],
         }
         return copy.deepcopy(out)  # the caller may change it; the result stays as made
 

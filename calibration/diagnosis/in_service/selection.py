@@ -1,0 +1,123 @@
+"""Which of the fitted hypotheses are causes, which are properties of a normal vehicle or
+track, and which are neither.
+
+The data has three parts that no extension shares, each decided on its own:
+
+* **rail side**: the axle boxes' spectra over speed (the track extension);
+* **wheels**: the axle-box consistency channel (the wheel polygon);
+* **vehicle**: the bogie and carbody channels (the response extensions), where effects
+  add up in one transfer function, so they are found one after the other (forward
+  selection): the best hypothesis that passes (:meth:`.hypotheses.Hypothesis.passes`) is
+  kept, every other response extension is fitted again on top of it and judged by what
+  it adds on held-out data, and so on while one passes, up to ``MAX_RESPONSE_STEPS``.
+
+A passing hypothesis whose fitted size is what every vehicle or track has (a carbody
+bending above the catalogue's range, a track stiffer than its soft track:
+:attr:`.extensions.Extension.normal_above`) is a *property*: kept in the model, so that
+what it explains is not blamed on anything else, and reported, but not a cause.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from .evidence import DiagnosisData, Evidence, channel_evidence
+from .extensions import EXTENSIONS, Extension, combined
+from .hypotheses import Hypothesis, fit_hypothesis
+from .response import ResponseFit
+
+#: response extensions found one after the other, at most (a third is rare enough on a
+#: campaign of a few journeys that its held-out gain would not be trusted)
+MAX_RESPONSE_STEPS = 3
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One extension the data asks for: its name, whether it is a cause or a property,
+    its fitted parameters and what it gained on held-out data (over what was found before
+    it, for the vehicle's later steps)."""
+
+    name: str
+    role: str  # "cause" or "property"
+    parameters: dict
+    gain: float
+    best_channel: str
+    hypothesis: Hypothesis  # as fitted (a vehicle step: the combination of every step so far)
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "role": self.role, "parameters": self.parameters, "gain": self.gain,
+                "best_channel": self.best_channel}
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The findings in the order found, the vehicle's tried combinations that did not pass,
+    and the response fit with every vehicle finding (None: no vehicle finding)."""
+
+    findings: tuple[Finding, ...]
+    rejected_steps: tuple[Hypothesis, ...]
+    vehicle_fit: ResponseFit | None
+    vehicle_hypothesis: Hypothesis | None
+
+    @property
+    def causes(self) -> tuple[Finding, ...]:
+        return tuple(f for f in self.findings if f.role == "cause")
+
+    @property
+    def properties(self) -> tuple[Finding, ...]:
+        return tuple(f for f in self.findings if f.role == "property")
+
+    def cause_name(self) -> str | None:
+        """The causes joined by ``+`` in name order, or None."""
+        return "+".join(sorted(f.name for f in self.causes)) or None
+
+    def evidence_left(self, data: DiagnosisData, ev: Evidence) -> Evidence:
+        """The baseline's evidence with the response channels' residuals of the vehicle's
+        findings (what is left systematic once they are in the model)."""
+        if self.vehicle_fit is None:
+            return ev
+        channels, _ = channel_evidence(data, self.vehicle_fit, ev.masks)
+        return replace(ev, channels=channels)
+
+
+def _finding(ext: Extension, h: Hypothesis, parameters: dict) -> Finding:
+    role = "property" if ext.is_property(parameters) else "cause"
+    return Finding(ext.name, role, parameters, h.gain, h.best_channel, h)
+
+
+def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, ev: Evidence,
+           progress=None) -> Selection:
+    """The findings of the fitted hypotheses ``hyps`` (each fitted alone on the baseline
+    ``base_fit`` with evidence ``ev``); see the module's description."""
+    s = data.settings
+    say = progress or (lambda msg: None)
+    findings: list[Finding] = []
+    for kind in ("track", "wheel"):
+        for h in hyps:
+            if h.kind == kind and h.passes(s):
+                findings.append(_finding(h.extension, h, h.parameters))
+    response = [h for h in hyps if h.kind == "response"]
+    current = max((h for h in response if h.passes(s)), key=lambda h: h.penalised_gain, default=None)
+    rejected: list[Hypothesis] = []
+    if current is None:
+        return Selection(tuple(findings), (), None, None)
+    ext = current.extension
+    findings.append(_finding(ext, current, current.parameters))
+    used = [ext.name]
+    for _ in range(MAX_RESPONSE_STEPS - 1):
+        tried = []
+        for name, e in EXTENSIONS.items():
+            if e.kind != "response" or name in used:
+                continue
+            h = fit_hypothesis(data, combined(current.extension, e), base_fit, ev, 0.0, added_to=current)
+            say(f"{' + '.join(used)} + {name}: held-out gain {h.gain:.1%} on {h.best_channel}")
+            tried.append((e, h))
+        ok = [(e, h) for e, h in tried if h.passes(s)]
+        rejected += [h for e, h in tried if not h.passes(s)]
+        if not ok:
+            break
+        e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
+        own = {r.name: h.parameters[r.name] for r in e.params}
+        findings.append(_finding(e, h, own))
+        used.append(e.name)
+        current = h
+    return Selection(tuple(findings), tuple(rejected), current.fit, current)

@@ -1,0 +1,41 @@
+"""The in-service diagnosis's selection: extensions combine into one model with both
+additions, a fit that starts from extension parameters found before leaves them out of its
+global stage, and a fitted size that every vehicle or track has is a property, not a cause."""
+from __future__ import annotations
+
+import pytest
+
+from calibration.diagnosis.in_service.extensions import (BENDING_FAULT_HZ, EXTENSIONS, SOFT_TRACK_N_PER_M,
+                                                         combined)
+from calibration.diagnosis.in_service.response import SensorModel
+from calibration.models.car2d import CarExtras
+
+
+def test_a_combined_extension_makes_both_additions_from_its_own_parameters():
+    both = combined(EXTENSIONS["carbody_bending"], EXTENSIONS["sensor_offset"])
+    assert both.name == "carbody_bending+sensor_offset" and both.kind == "response"
+    assert [r.name for r in both.params] == ["bending_hz", "bending_damping", "bending_mass_ratio", "dx", "gyro_gain"]
+    extras, sensors = both.make({"bending_hz": 9.0, "bending_damping": 0.03, "bending_mass_ratio": 0.3,
+                                 "dx": 0.7, "gyro_gain": 1.1})
+    assert extras == CarExtras(bending_hz=9.0, bending_damping=0.03, bending_mass_ratio=0.3)
+    assert sensors == SensorModel(0.7, 1.1)
+    three = combined(both, EXTENSIONS["cog_offset"])
+    extras, sensors = three.make({"bending_hz": 9.0, "bending_damping": 0.03, "bending_mass_ratio": 0.3,
+                                  "dx": 0.7, "gyro_gain": 1.1, "cog_offset": -0.5})
+    assert extras.cog_offset == -0.5 and extras.bending_hz == 9.0 and sensors == SensorModel(0.7, 1.1)
+    with pytest.raises(ValueError, match="only response extensions"):
+        combined(EXTENSIONS["carbody_bending"], EXTENSIONS["track_flexibility"])
+
+
+@pytest.mark.parametrize("name, parameter, bound", [("carbody_bending", "bending_hz", BENDING_FAULT_HZ),
+                                                     ("track_flexibility", "track_stiffness_n_per_m",
+                                                      SOFT_TRACK_N_PER_M)])
+def test_a_size_above_the_catalogues_fault_range_is_a_property(name, parameter, bound):
+    ext = EXTENSIONS[name]
+    assert ext.is_property({parameter: bound * 1.01}) and not ext.is_property({parameter: bound * 0.99})
+    assert not ext.is_property({})
+
+
+def test_offsets_reservoirs_and_polygons_are_faults_at_any_size():
+    for name in ("cog_offset", "sensor_offset", "airspring_reservoir", "wheel_out_of_round"):
+        assert EXTENSIONS[name].normal_above is None and not EXTENSIONS[name].is_property({"anything": 1e9})
