@@ -39,3 +39,25 @@ def test_a_size_above_the_catalogues_fault_range_is_a_property(name, parameter, 
 def test_offsets_reservoirs_and_polygons_are_faults_at_any_size():
     for name in ("cog_offset", "sensor_offset", "airspring_reservoir", "wheel_out_of_round"):
         assert EXTENSIONS[name].normal_above is None and not EXTENSIONS[name].is_property({"anything": 1e9})
+
+
+def _hypothesis(gain: float, left: float | None, losses=()):
+    from calibration.diagnosis.in_service.hypotheses import Hypothesis
+
+    ext = EXTENSIONS["sensor_offset"]
+    return Hypothesis(extension=ext, evidence_score=0.0, parameters={}, parameters_at_bounds=(), model={},
+                      heldout_error={}, residual=None, systematic_left=left, best_channel="bogie1_gyro_pitch",
+                      gain=gain, worst_change=0.0, losses=tuple(losses), penalised_gain=gain - 0.01 * ext.n_params,
+                      fit=None)
+
+
+def test_a_hypothesis_passes_on_gain_without_losses_and_explaining_the_systematic_residual():
+    """The decision's three rules, each able to fail a hypothesis on its own."""
+    from calibration.diagnosis.in_service import DiagnosisSettings
+
+    s = DiagnosisSettings()
+    assert _hypothesis(0.4, 0.1).passes(s)
+    assert not _hypothesis(s.min_gain, 0.1).passes(s)  # the penalty takes it under the bar
+    assert not _hypothesis(0.4, 0.1, losses=("bogie1_acc_z",)).passes(s)
+    assert not _hypothesis(0.4, 2 * s.max_systematic_left).passes(s)  # a rescaling, not the cause
+    assert _hypothesis(0.4, None).passes(s)  # no response residual to explain (a wheel or track kind)

@@ -10,6 +10,8 @@ The data has three parts that no extension shares, each decided on its own:
   selection): the best hypothesis that passes (:meth:`.hypotheses.Hypothesis.passes`) is
   kept, every other response extension is fitted again on top of it and judged by what
   it adds on held-out data, and so on while one passes, up to ``MAX_RESPONSE_STEPS``.
+  When none passes alone because each leaves the systematic residual of another effect
+  (two effects hide each other), the leading ones are tried in pairs (:func:`_pair`).
 
 A passing hypothesis whose fitted size is what every vehicle or track has (a carbody
 bending above the catalogue's range, a track stiffer than its soft track:
@@ -28,6 +30,8 @@ from .response import ResponseFit
 #: response extensions found one after the other, at most (a third is rare enough on a
 #: campaign of a few journeys that its held-out gain would not be trusted)
 MAX_RESPONSE_STEPS = 3
+#: response hypotheses tried in pairs when none passes alone (the best by gain)
+PAIR_CANDIDATES = 3
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,26 @@ def _finding(ext: Extension, h: Hypothesis, parameters: dict) -> Finding:
     return Finding(ext.name, role, parameters, h.gain, h.best_channel, h)
 
 
+def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit, ev: Evidence, say
+          ) -> tuple[Hypothesis, Hypothesis] | None:
+    """Two effects that hide each other: each response hypothesis that gains enough alone
+    but leaves the systematic residual (the other effect's part of it) is fitted together
+    with each other such one; a pair is found when each, added to the other, passes. The
+    first of the pair alone, and the pair as its combination; None when no pair passes."""
+    s = data.settings
+    blocked = sorted((h for h in response if h.penalised_gain >= s.min_gain and not h.losses
+                      and h.leaves_systematic(s)), key=lambda h: -h.penalised_gain)[:PAIR_CANDIDATES]
+    best = None
+    for i, a in enumerate(blocked):
+        for b in blocked[i + 1:]:
+            ab = fit_hypothesis(data, combined(a.extension, b.extension), base_fit, ev, 0.0, added_to=a)
+            ba = fit_hypothesis(data, combined(b.extension, a.extension), base_fit, ev, 0.0, added_to=b)
+            say(f"{a.name} with {b.name}: held-out gain {ab.gain:.1%} over {a.name}, {ba.gain:.1%} over {b.name}")
+            if ab.passes(s) and ba.passes(s) and (best is None or ab.penalised_gain > best[1].penalised_gain):
+                best = (a, ab)
+    return best
+
+
 def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, ev: Evidence,
            progress=None) -> Selection:
     """The findings of the fitted hypotheses ``hyps`` (each fitted alone on the baseline
@@ -98,12 +122,19 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
     response = [h for h in hyps if h.kind == "response"]
     current = max((h for h in response if h.passes(s)), key=lambda h: h.penalised_gain, default=None)
     rejected: list[Hypothesis] = []
-    if current is None:
-        return Selection(tuple(findings), (), None, None)
-    ext = current.extension
-    findings.append(_finding(ext, current, current.parameters))
-    used = [ext.name]
-    for _ in range(MAX_RESPONSE_STEPS - 1):
+    if current is not None:
+        findings.append(_finding(current.extension, current, current.parameters))
+        used = [current.name]
+    else:
+        pair = _pair(data, response, base_fit, ev, say)
+        if pair is None:
+            return Selection(tuple(findings), (), None, None)
+        first, current = pair
+        then = EXTENSIONS[current.name.split("+")[-1]]
+        for e, h in ((first.extension, first), (then, current)):  # each as fitted together
+            findings.append(_finding(e, h, {r.name: current.parameters[r.name] for r in e.params}))
+        used = [first.name, then.name]
+    while len(used) < MAX_RESPONSE_STEPS:
         tried = []
         for name, e in EXTENSIONS.items():
             if e.kind != "response" or name in used:
