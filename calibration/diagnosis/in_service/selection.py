@@ -22,9 +22,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from .evidence import DiagnosisData, Evidence, channel_evidence
+import numpy as np
+
+from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors
 from .extensions import EXTENSIONS, Extension, combined
-from .hypotheses import Hypothesis, fit_hypothesis
+from .hypotheses import Hypothesis, fit_hypothesis, reductions
 from .response import ResponseFit
 
 #: response extensions found one after the other, at most (a third is rare enough on a
@@ -92,8 +94,10 @@ def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit
           ) -> tuple[Hypothesis, Hypothesis] | None:
     """Two effects that hide each other: each response hypothesis that gains enough alone
     but leaves the systematic residual (the other effect's part of it) is fitted together
-    with each other such one; a pair is found when each, added to the other, passes. The
-    first of the pair alone, and the pair as its combination; None when no pair passes."""
+    with each other such one. A pair is found when each, added to the other, gains enough
+    and loses on no channel, and together they explain the baseline's systematic residual
+    as one hypothesis must. The first of the pair alone, and the pair as its combination;
+    None when no pair passes."""
     s = data.settings
     blocked = sorted((h for h in response if h.penalised_gain >= s.min_gain and not h.losses
                       and h.leaves_systematic(s)), key=lambda h: -h.penalised_gain)[:PAIR_CANDIDATES]
@@ -103,9 +107,27 @@ def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit
             ab = fit_hypothesis(data, combined(a.extension, b.extension), base_fit, ev, 0.0, added_to=a)
             ba = fit_hypothesis(data, combined(b.extension, a.extension), base_fit, ev, 0.0, added_to=b)
             say(f"{a.name} with {b.name}: held-out gain {ab.gain:.1%} over {a.name}, {ba.gain:.1%} over {b.name}")
-            if ab.passes(s) and ba.passes(s) and (best is None or ab.penalised_gain > best[1].penalised_gain):
+            if all(h.penalised_gain >= s.min_gain and not h.losses for h in (ab, ba)) \
+                    and _left_of_baseline(data, ab, base_fit, ev) <= s.max_systematic_left \
+                    and (best is None or ab.penalised_gain > best[1].penalised_gain):
                 best = (a, ab)
     return best
+
+
+def _left_of_baseline(data: DiagnosisData, h: Hypothesis, base_fit: ResponseFit, ev: Evidence) -> float:
+    """The share of the baseline's systematic residual (held-out error x input coherence) a
+    response hypothesis leaves on the channel where it gains most over the baseline: the
+    rule each single hypothesis meets (:meth:`.hypotheses.Hypothesis.leaves_systematic`),
+    for a combination judged as a whole."""
+    before = response_errors(data, base_fit, ev.masks)
+    after = np.array([h.heldout_error[n]["after"] for n in data.layout.response_names])
+    red = reductions(before, after)
+    if not np.any(~np.isnan(red)):
+        return np.inf
+    c = int(np.nanargmax(red))
+    name = data.layout.response_names[c]
+    coh_before = ev.channels[name]["input_coherence"]
+    return float((1.0 - red[c]) * h.residual[name]["after"]["input_coherence"] / max(coh_before, 1e-12))
 
 
 def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, ev: Evidence,
