@@ -170,7 +170,8 @@ def cmd_diagnose(args) -> int:
     if not args.quiet:  # the evidence in full; the summary line stays one line
         for line in diagnosis.summary:
             print(f"  {line}", file=sys.stderr)
-    print(f"cause: {diagnosis.cause}; wrote {names(out_path, *plots)}")
+    sure = getattr(diagnosis, "confidence", None)  # the in-service diagnosis's; the excitation test's has none yet
+    print(f"cause: {diagnosis.cause}{f' (confidence {sure})' if sure else ''}; wrote {names(out_path, *plots)}")
     return EXIT_OK
 
 

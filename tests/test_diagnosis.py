@@ -370,12 +370,19 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
     out = tmp_path / "diag.json"
     assert main(["diagnose", str(root), "--calibration", str(cal), "--out", str(out), "--quiet"]) == 0
     result = json.loads(out.read_text())
-    assert {"cause", "evidence", "extension", "gain"} <= set(result)
+    assert {"cause", "evidence", "extension", "gain", "findings", "confidence"} <= set(result)
+    cause = next(f for f in result["findings"] if f["role"] == "cause")
+    if cause["interval_95"] is None:  # too few held-out (run, speed) cells to resample
+        assert cause["heldout_cells"] < 4 and cause["confidence"] == "low"
+    else:
+        assert cause["interval_95"][0] <= cause["interval_95"][1] and cause["confidence"] in ("high", "moderate")
+    assert result["confidence"] == cause["confidence"]
     assert result["baseline"]["start"] == truth["parameters"] and str(cal) in result["baseline"]["source"]
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])
     printed = capsys.readouterr().out  # one summary line: the cause and the files written
-    assert printed.count("\n") == 1 and printed.startswith("cause: cog_offset;") and "diag.json" in printed
+    assert printed.count("\n") == 1 and printed.startswith(f"cause: cog_offset (confidence {result['confidence']});")
+    assert "diag.json" in printed
 
 
 def test_diagnose_refuses_a_missing_campaign_without_writing(tmp_path, capsys):

@@ -61,3 +61,21 @@ def test_a_hypothesis_passes_on_gain_without_losses_and_explaining_the_systemati
     assert not _hypothesis(0.4, 0.1, losses=("bogie1_acc_z",)).passes(s)
     assert not _hypothesis(0.4, 2 * s.max_systematic_left).passes(s)  # a rescaling, not the cause
     assert _hypothesis(0.4, None).passes(s)  # no response residual to explain (a wheel or track kind)
+
+
+def test_a_gain_seen_in_every_held_out_cell_is_sure_one_carried_by_a_single_cell_is_not():
+    """The interval comes from resampling the held-out cells: the same gain spread over
+    every cell clears the bar; carried by one cell of ten, its interval reaches below it."""
+    import numpy as np
+
+    from calibration.diagnosis.in_service.confidence import from_cells
+
+    r0 = np.ones(10)
+    even = from_cells(r0, 0.5 * r0, bar=0.17, rivals=[])
+    assert even.gain == pytest.approx(0.5) and even.interval == pytest.approx((0.5, 0.5)) and even.word == "high"
+    lumpy = from_cells(np.r_[9.0, np.ones(9)], np.r_[0.0, np.ones(9)], bar=0.17, rivals=[])  # one cell cleared
+    assert lumpy.gain == pytest.approx(0.5) and lumpy.interval[0] < 0.17 and lumpy.word == "moderate"
+    rival = from_cells(r0, 0.5 * r0, bar=0.17, rivals=[0.5])
+    assert rival.word == "moderate" and "runner-up" in rival.why
+    few = from_cells(np.ones(3), 0.5 * np.ones(3), bar=0.17, rivals=[])
+    assert few.interval is None and few.word == "low"

@@ -46,12 +46,21 @@ class InServiceDiagnosis:
     detectability: Detectability  # each extension's weakest detectable effect on this campaign
     findings: tuple[Finding, ...] = ()  # causes and properties, in the order found (:mod:`.selection`)
 
+    @property
+    def confidence(self) -> str | None:
+        """The answer's confidence: the weakest of its causes' words (``high``, ``moderate``,
+        ``low``; :mod:`.confidence`); None for ``none`` and ``unexplained``, which carry
+        the detectability table and the evidence instead."""
+        words = [f.confidence.word for f in self.findings if f.role == "cause"]
+        return min(words, key=("low", "moderate", "high").index) if words else None
+
     def to_json(self) -> dict:
         """The result as JSON values (a new dict on each call): ``format``, ``campaign``,
         ``cause``, ``evidence`` (``summary`` first), ``extension``, ``gain``, ``baseline``,
         ``hypotheses``, ``split``, ``settings``, ``detectability`` ({extension: parameter,
         unit, detectable_beyond (None: not within its range or not observable), observable,
-        why})."""
+        why}), ``findings`` (each cause and property with its held-out gain, interval and
+        confidence) and ``confidence`` (:attr:`confidence`)."""
         best, s = self.best, self.settings
         out = {
             "format": FORMAT, "campaign": str(self.campaign), "cause": self.cause,
@@ -71,6 +80,7 @@ class InServiceDiagnosis:
                          "max_systematic_left": s.max_systematic_left},
             "detectability": self.detectability.to_json(),
             "findings": [f.to_json() for f in self.findings],
+            "confidence": self.confidence,
         }
         return copy.deepcopy(out)  # the caller may change it; the result stays as made
 

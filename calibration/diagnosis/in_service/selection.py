@@ -26,6 +26,7 @@ import numpy as np
 
 from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors
 from .extensions import EXTENSIONS, Extension, combined
+from .confidence import Confidence, held_out_confidence, response_confidence
 from .hypotheses import Hypothesis, fit_hypothesis, reductions
 from .response import ResponseFit
 
@@ -48,10 +49,11 @@ class Finding:
     gain: float
     best_channel: str
     hypothesis: Hypothesis  # as fitted (a vehicle step: the combination of every step so far)
+    confidence: Confidence
 
     def to_json(self) -> dict:
         return {"name": self.name, "role": self.role, "parameters": self.parameters, "gain": self.gain,
-                "best_channel": self.best_channel}
+                "best_channel": self.best_channel, **self.confidence.to_json()}
 
 
 @dataclass(frozen=True)
@@ -85,18 +87,27 @@ class Selection:
         return replace(ev, channels=channels)
 
 
-def _finding(ext: Extension, h: Hypothesis, parameters: dict) -> Finding:
+def _finding(ext: Extension, h: Hypothesis, parameters: dict, confidence: Confidence) -> Finding:
     role = "property" if ext.is_property(parameters) else "cause"
-    return Finding(ext.name, role, parameters, h.gain, h.best_channel, h)
+    return Finding(ext.name, role, parameters, h.gain, h.best_channel, h, confidence)
+
+
+def _confidence(data: DiagnosisData, ev: Evidence, before: ResponseFit, h: Hypothesis, ext: Extension,
+                rivals: list[Hypothesis]) -> Confidence:
+    """A response finding's confidence: ``h`` improving on ``before``, ``ext`` the extension
+    it adds, ``rivals`` the other hypotheses that passed at that step."""
+    s = data.settings
+    return response_confidence(data, before, h.fit, h.best_channel, ev.masks, s.min_gain + s.penalty * ext.n_params,
+                               [r.gain for r in rivals if r is not h])
 
 
 def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit, ev: Evidence, say
-          ) -> tuple[Hypothesis, Hypothesis] | None:
+          ) -> tuple[Hypothesis, Hypothesis, Hypothesis, Hypothesis] | None:
     """Two effects that hide each other: each response hypothesis that gains enough alone
     but leaves the systematic residual (the other effect's part of it) is fitted together
     with each other such one. A pair is found when each, added to the other, gains enough
     and loses on no channel, and together they explain the baseline's systematic residual
-    as one hypothesis must. The first of the pair alone, and the pair as its combination;
+    as one hypothesis must. (a, b, a then b, b then a), each alone and combined both ways;
     None when no pair passes."""
     s = data.settings
     blocked = sorted((h for h in response if h.penalised_gain >= s.min_gain and not h.losses
@@ -110,7 +121,7 @@ def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit
             if all(h.penalised_gain >= s.min_gain and not h.losses for h in (ab, ba)) \
                     and _left_of_baseline(data, ab, base_fit, ev) <= s.max_systematic_left \
                     and (best is None or ab.penalised_gain > best[1].penalised_gain):
-                best = (a, ab)
+                best = (a, b, ab, ba)
     return best
 
 
@@ -140,22 +151,25 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
     for kind in ("track", "wheel"):
         for h in hyps:
             if h.kind == kind and h.passes(s):
-                findings.append(_finding(h.extension, h, h.parameters))
+                how = "by speed (each speed bin from the others)" if kind == "track" else "on held-out runs"
+                findings.append(_finding(h.extension, h, h.parameters, held_out_confidence(h.gain, how)))
     response = [h for h in hyps if h.kind == "response"]
     current = max((h for h in response if h.passes(s)), key=lambda h: h.penalised_gain, default=None)
     rejected: list[Hypothesis] = []
     if current is not None:
-        findings.append(_finding(current.extension, current, current.parameters))
+        passed = [h for h in response if h.passes(s)]
+        findings.append(_finding(current.extension, current, current.parameters,
+                                 _confidence(data, ev, base_fit, current, current.extension, passed)))
         used = [current.name]
     else:
         pair = _pair(data, response, base_fit, ev, say)
         if pair is None:
             return Selection(tuple(findings), (), None, None)
-        first, current = pair
-        then = EXTENSIONS[current.name.split("+")[-1]]
-        for e, h in ((first.extension, first), (then, current)):  # each as fitted together
-            findings.append(_finding(e, h, {r.name: current.parameters[r.name] for r in e.params}))
-        used = [first.name, then.name]
+        a, b, current, ba = pair
+        for e, alone, added in ((a.extension, b, ba), (b.extension, a, current)):  # each by what it adds to the other
+            findings.append(_finding(e, added, {r.name: current.parameters[r.name] for r in e.params},
+                                     _confidence(data, ev, alone.fit, added, e, [])))
+        used = [a.name, b.name]
     while len(used) < MAX_RESPONSE_STEPS:
         tried = []
         for name, e in EXTENSIONS.items():
@@ -170,7 +184,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             break
         e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
         own = {r.name: h.parameters[r.name] for r in e.params}
-        findings.append(_finding(e, h, own))
+        findings.append(_finding(e, h, own, _confidence(data, ev, current.fit, h, e, [x for _, x in ok])))
         used.append(e.name)
         current = h
     return Selection(tuple(findings), tuple(rejected), current.fit, current)
