@@ -91,6 +91,13 @@ def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     return np.where(ok, 1.0 - after / np.where(ok, before, 1.0), np.nan)
 
 
+def systematic_left(gain: float, after: dict, before: dict) -> float:
+    """Share of a channel's systematic residual (held-out error x input coherence) left when
+    the held-out error falls by ``gain``; ``after``, ``before``: the residual's evidence
+    (``input_coherence``) with and without the extension."""
+    return (1.0 - gain) * after["input_coherence"] / max(before["input_coherence"], 1e-12)
+
+
 def heldout_losses(names, before, after, best: int, max_loss: float) -> list[str]:
     """Channels a hypothesis makes worse on held-out data: error up by more than
     ``max_loss`` of its own and by more than ``max_loss`` of the error the hypothesis
@@ -173,7 +180,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
     left = None
     if residual is not None and seen.any():  # the systematic residual left on the best channel
         r = residual[names[best]]
-        left = (1.0 - gain) * r["after"]["input_coherence"] / max(r["before"]["input_coherence"], 1e-12)
+        left = systematic_left(gain, r["after"], r["before"])
     return Hypothesis(
         extension=ext, evidence_score=score, parameters=params, parameters_at_bounds=tuple(at), model=model,
         heldout_error={n: {"before": float(b), "after": float(a), "reduction": float(r) if ok else None}

@@ -27,7 +27,7 @@ import numpy as np
 from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors
 from .extensions import EXTENSIONS, Extension, combined
 from .confidence import Confidence, held_out_confidence, response_confidence
-from .hypotheses import Hypothesis, fit_hypothesis, reductions
+from .hypotheses import Hypothesis, fit_hypothesis, reductions, systematic_left
 from .response import ResponseFit
 
 #: response extensions found one after the other, at most (a third is rare enough on a
@@ -58,11 +58,10 @@ class Finding:
 
 @dataclass(frozen=True)
 class Selection:
-    """The findings in the order found, the vehicle's tried combinations that did not pass,
-    and the response fit with every vehicle finding (None: no vehicle finding)."""
+    """The findings in the order found, and the response fit with every vehicle finding
+    (None: no vehicle finding)."""
 
     findings: tuple[Finding, ...]
-    rejected_steps: tuple[Hypothesis, ...]
     vehicle_fit: ResponseFit | None
     vehicle_hypothesis: Hypothesis | None
 
@@ -137,8 +136,7 @@ def _left_of_baseline(data: DiagnosisData, h: Hypothesis, base_fit: ResponseFit,
         return np.inf
     c = int(np.nanargmax(red))
     name = data.layout.response_names[c]
-    coh_before = ev.channels[name]["input_coherence"]
-    return float((1.0 - red[c]) * h.residual[name]["after"]["input_coherence"] / max(coh_before, 1e-12))
+    return systematic_left(float(red[c]), h.residual[name]["after"], ev.channels[name])
 
 
 def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, ev: Evidence,
@@ -155,7 +153,6 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
                 findings.append(_finding(h.extension, h, h.parameters, held_out_confidence(h.gain, how)))
     response = [h for h in hyps if h.kind == "response"]
     current = max((h for h in response if h.passes(s)), key=lambda h: h.penalised_gain, default=None)
-    rejected: list[Hypothesis] = []
     if current is not None:
         passed = [h for h in response if h.passes(s)]
         findings.append(_finding(current.extension, current, current.parameters,
@@ -164,7 +161,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
     else:
         pair = _pair(data, response, base_fit, ev, say)
         if pair is None:
-            return Selection(tuple(findings), (), None, None)
+            return Selection(tuple(findings), None, None)
         a, b, current, ba = pair
         for e, alone, added in ((a.extension, b, ba), (b.extension, a, current)):  # each by what it adds to the other
             findings.append(_finding(e, added, {r.name: current.parameters[r.name] for r in e.params},
@@ -179,7 +176,6 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             say(f"{' + '.join(used)} + {name}: held-out gain {h.gain:.1%} on {h.best_channel}")
             tried.append((e, h))
         ok = [(e, h) for e, h in tried if h.passes(s)]
-        rejected += [h for e, h in tried if not h.passes(s)]
         if not ok:
             break
         e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
@@ -187,4 +183,4 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
         findings.append(_finding(e, h, own, _confidence(data, ev, current.fit, h, e, [x for _, x in ok])))
         used.append(e.name)
         current = h
-    return Selection(tuple(findings), tuple(rejected), current.fit, current)
+    return Selection(tuple(findings), current.fit, current)
