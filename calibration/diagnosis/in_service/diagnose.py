@@ -22,7 +22,9 @@ the cause, the extended model and the gain.
    below: an extension that only rescales what it cannot model, e.g. a gyro gain against a
    bogie resonance, leaves the residual as coherent as before). The rail side (track), the
    wheels and the vehicle are decided apart; on the vehicle, response extensions are
-   added one after the other while one passes on top of those found. A passing extension
+   added one after the other while one passes on top of those found, or found in pairs
+   when two effects hide each other. Each finding carries its held-out gain's interval
+   and a confidence word (:mod:`.confidence`). A passing extension
    fitted at a size every vehicle or track has (a carbody bending above 12 Hz, a track
    stiffer than 80 MN/m per wheelset) is a property, kept and reported, not a cause. The
    causes, joined by ``+``, are the answer; without one, ``none`` when what is left shows
