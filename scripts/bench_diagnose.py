@@ -75,6 +75,8 @@ import sys
 import tempfile
 import time
 from dataclasses import dataclass
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import Pool
 from pathlib import Path
 
@@ -276,6 +278,19 @@ def run_exudyn_case(c: dict) -> dict:
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
 
+def _in_own_process(c: dict) -> dict:
+    """:func:`run_exudyn_case` in a process of its own, so that one killed by the operating
+    system (the truth once grew past 16 GB) is reported as that campaign's outcome and the
+    bench goes on, where a shared pool would wait for it forever."""
+    try:
+        with ProcessPoolExecutor(1) as one:
+            return one.submit(run_exudyn_case, c).result()
+    except BrokenProcessPool:
+        return {**c, "diagnosed": "error: the process was killed (memory?)", "answer": "error",
+                "verdict": "missed", "summary": [], "gain": None, "hypotheses": {}, "findings": [],
+                "truth_effect": None, "synth_s": float("nan"), "diagnose_s": float("nan")}
+
+
 def _made_for(c: dict) -> dict:
     """What makes bench campaign ``c``: a kept campaign made for the same is diagnosed again."""
     return {k: c[k] for k in ("seed", "vehicle", "journeys", "length_km", "carbody_sensors", "effect")}
@@ -340,7 +355,13 @@ def _report_exudyn(results: list[dict], args) -> None:
             line = (f"{min(g):.0%} / {np.median(g):.0%} / {max(g):.0%}, fitted on {len(g)}/{len(by[n])}"
                     if g else f"not fitted on any of {len(by[n])}")
             print(f"  {n:22s} {line}" + (f"; when named: median {np.median(named):.0%}" if named else ""))
-    st, dt = [r["synth_s"] for r in results], [r["diagnose_s"] for r in results]
+    done = [r for r in results if np.isfinite(r["synth_s"])]  # a killed campaign has no times
+    lost = [r["seed"] for r in results if not np.isfinite(r["synth_s"])]
+    if lost:
+        print(f"\ncampaigns whose process was killed (counted as missed, never dropped): seeds {lost}")
+    if not done:
+        return
+    st, dt = [r["synth_s"] for r in done], [r["diagnose_s"] for r in done]
     print(f"\nwall time per campaign: synthesis median {np.median(st):.0f} s (max {max(st):.0f}), diagnosis median "
           f"{np.median(dt):.0f} s (max {max(dt):.0f}); {args.jobs} in parallel")
 
@@ -372,8 +393,8 @@ def main_exudyn(args) -> int:
                  keep=bool(args.keep))
     results = []
     t0 = time.perf_counter()
-    with Pool(args.jobs) as pool:
-        for r in pool.imap_unordered(run_exudyn_case, campaigns):
+    with ThreadPoolExecutor(args.jobs) as pool:
+        for r in map(Future.result, as_completed(pool.submit(_in_own_process, c) for c in campaigns)):
             results.append(r)
             gain = "" if r["gain"] is None else f", held-out error -{r['gain']['reduction']:.0%}"
             print(f"[{len(results)}/{len(campaigns)}] seed {r['seed']}: {r['case']} {r['effect'] or '-'} -> "
