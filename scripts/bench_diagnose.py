@@ -112,11 +112,12 @@ def run_case(case: dict) -> dict:
     diag = diagnose_in_service(open_campaign(root))
     t2 = time.perf_counter()
     shutil.rmtree(root, ignore_errors=True)
-    return {**case, "diagnosed": diag.cause, "gain": diag.to_json()["gain"],
+    out = diag.to_json()
+    return {**case, "diagnosed": diag.cause, "gain": out["gain"],
             "extension": diag.best and diag.best.parameters,
             "truth_details": truth["effect"] and truth["effect"]["details"],
             "hypotheses": {h.name: h.gain for h in diag.hypotheses},
-            "findings": diag.to_json()["findings"],
+            "findings": out["findings"],
             "systematic_left": {h.name: h.systematic_left for h in diag.hypotheses if h.systematic_left is not None},
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}
 
@@ -268,11 +269,12 @@ def run_exudyn_case(c: dict) -> dict:
     if not c["keep"]:
         shutil.rmtree(root, ignore_errors=True)
     answer = _answer(diag.cause, diag.summary, case.hidden)
+    out = diag.to_json()
     return {**c, "diagnosed": diag.cause, "answer": answer, "verdict": verdict(case, answer),
-            "summary": list(diag.summary), "gain": diag.to_json()["gain"],
+            "summary": list(diag.summary), "gain": out["gain"],
             "extension": diag.best and diag.best.parameters, "truth_effect": truth["effect"],
             "hypotheses": {h.name: h.gain for h in diag.hypotheses},
-            "findings": diag.to_json()["findings"],
+            "findings": out["findings"],
             "baseline_at_bounds": list(diag.baseline.at_bounds),
             "real_time_factor": truth["performance"]["real_time_factor"],
             "synth_s": t1 - t0, "diagnose_s": t2 - t1}

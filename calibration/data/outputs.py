@@ -356,6 +356,21 @@ def read_result(path, kinds: Iterable[str]) -> dict:
     return obj
 
 
+def result_rows(data: dict, key: str) -> list:
+    """``data[key]`` of a JSON result read back, which must be a list, or :class:`InputError`."""
+    rows = data.get(key)
+    if not isinstance(rows, list):
+        raise InputError(f"expected a list, got {quoted(rows)}", key=key)
+    return rows
+
+
+def result_label(row, where: str) -> str:
+    """The ``label`` of a row of a JSON result read back, or :class:`InputError` keyed ``where``."""
+    if not isinstance(row, dict) or not isinstance(row.get("label"), str):
+        raise InputError(f"a row needs a text label, got {quoted(row)}", key=where)
+    return row["label"]
+
+
 def result_number(row: dict, key: str, where: str, *, optional: bool = False, positive: bool = False):
     """``row[key]`` of a JSON result read back, as a finite float (None if ``optional`` and
     absent or null), or :class:`InputError` keyed ``where.key``."""

@@ -25,8 +25,8 @@ import numpy as np
 
 from ..data.campaign import Campaign
 from .. import checks
-from ..data.errors import InputError, excerpt
-from ..data.outputs import result_number
+from ..data.errors import InputError
+from ..data.outputs import result_label, result_number, result_rows
 from ..signals.modal import mac_matrix
 from . import ema
 
@@ -65,7 +65,6 @@ class ExcitationMode:
     n_stable: int
     peak_picking_hz: float | None  # the baseline's nearest peak, if within 1 %
 
-
     def to_json(self) -> dict:
         return {"label": self.label, "frequency_hz": self.frequency_hz, "damping_ratio": self.damping_ratio,
                 "n_stable": self.n_stable, "peak_picking_hz": self.peak_picking_hz,
@@ -74,8 +73,7 @@ class ExcitationMode:
     @classmethod
     def from_json(cls, row: dict, where: str, n_sensors: int) -> "ExcitationMode":
         """A mode of an identification file read back (``where``: its key there, for errors)."""
-        if not isinstance(row, dict) or not isinstance(row.get("label"), str):
-            raise InputError(f"a mode needs a text label, got {excerpt(repr(row))}", key=where)
+        label = result_label(row, where)
         try:
             shape = np.asarray(row.get("shape_real"), float) + 1j * np.asarray(row.get("shape_imag"), float)
         except (TypeError, ValueError):
@@ -84,7 +82,7 @@ class ExcitationMode:
             raise InputError(f"shape_real and shape_imag must be {n_sensors} finite numbers (one per sensor), "
                              "not all zero", key=where)
         n_stable = row.get("n_stable", 0)
-        return cls(label=row["label"], frequency_hz=result_number(row, "frequency_hz", where, positive=True),
+        return cls(label=label, frequency_hz=result_number(row, "frequency_hz", where, positive=True),
                    damping_ratio=result_number(row, "damping_ratio", where, optional=True), shape=shape,
                    n_stable=n_stable if isinstance(n_stable, int) else 0,
                    peak_picking_hz=result_number(row, "peak_picking_hz", where, optional=True))
@@ -104,11 +102,8 @@ class IdentifiedShapes:
         sensors = data.get("sensors")
         if not isinstance(sensors, list) or not sensors or not all(isinstance(n, str) for n in sensors):
             raise InputError("expected the list of sensor names the shapes are given at", key="sensors")
-        rows = data.get("modes")
-        if not isinstance(rows, list):
-            raise InputError("expected a list of modes", key="modes")
         return cls(tuple(sensors), tuple(ExcitationMode.from_json(r, f"modes[{i}]", len(sensors))
-                                         for i, r in enumerate(rows)))
+                                         for i, r in enumerate(result_rows(data, "modes"))))
 
 
 @dataclass(frozen=True, eq=False)

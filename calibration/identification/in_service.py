@@ -33,8 +33,8 @@ import warnings
 
 from .. import checks
 from ..data.campaign import Campaign
-from ..data.errors import CampaignError, InputError, excerpt
-from ..data.outputs import result_number
+from ..data.errors import CampaignError
+from ..data.outputs import result_label, result_number, result_rows
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
@@ -92,21 +92,17 @@ class IdentifiedMode:
     @classmethod
     def from_json(cls, row: dict, where: str) -> "IdentifiedMode":
         """A mode of an identification file read back (``where``: its key there, for errors)."""
-        if not isinstance(row, dict) or not isinstance(row.get("label"), str):
-            raise InputError(f"a mode needs a text label, got {excerpt(repr(row))}", key=where)
+        label = result_label(row, where)
         number = {k: result_number(row, k, where, optional=k != "frequency_hz", positive=k != "damping_ratio")
                   for k in ("frequency_hz", "damping_ratio", "damped_frequency_hz", "fdd_peak_hz", "prior_hz")}
         std = result_number(row, "frequency_std_hz", where, optional=True)
-        return cls(label=row["label"], method=str(row.get("method", "")), source=str(row.get("source", "")),
+        return cls(label=label, method=str(row.get("method", "")), source=str(row.get("source", "")),
                    frequency_std_hz=std, **number)
 
 
 def identified_modes_from_json(data: dict) -> tuple[IdentifiedMode, ...]:
     """The modes of an identification file read back."""
-    rows = data.get("modes")
-    if not isinstance(rows, list):
-        raise InputError("expected a list of modes", key="modes")
-    return tuple(IdentifiedMode.from_json(r, f"modes[{i}]") for i, r in enumerate(rows))
+    return tuple(IdentifiedMode.from_json(r, f"modes[{i}]") for i, r in enumerate(result_rows(data, "modes")))
 
 
 @dataclass(frozen=True)

@@ -49,16 +49,15 @@ class Confidence:
                 "heldout_cells": self.cells, "confidence": self.word, "why": self.why}
 
 
-def cell_residuals(data: DiagnosisData, fit: ResponseFit, channel: int, masks: np.ndarray) -> tuple[list, np.ndarray]:
-    """The held-out cells and ``fit``'s residual power on ``channel`` in each, over the
+def cell_residuals(data: DiagnosisData, fit: ResponseFit, channel: int, masks: np.ndarray) -> np.ndarray:
+    """``fit``'s residual power on ``channel`` in each held-out cell (in key order), over the
     channel's signal bands."""
-    cells = sorted(data.keys(data.test))
     m = masks[:, channel]
     out = []
-    for k in cells:
+    for k in sorted(data.keys(data.test)):
         R, _ = response_nrp(data.stats, data.layout, {k}, fit.parameters, fit.extras, fit.sensors, by_band=True)
         out.append(R[m, channel].sum())
-    return cells, np.array(out)
+    return np.array(out)
 
 
 def response_confidence(data: DiagnosisData, before: ResponseFit, after: ResponseFit, channel: str,
@@ -67,8 +66,8 @@ def response_confidence(data: DiagnosisData, before: ResponseFit, after: Respons
     ``channel``; ``bar``: the raw gain it must clear; ``rivals``: the gains of the other
     hypotheses that passed."""
     c = data.layout.response_names.index(channel)
-    _, r0 = cell_residuals(data, before, c, masks)
-    _, r1 = cell_residuals(data, after, c, masks)
+    r0 = cell_residuals(data, before, c, masks)
+    r1 = cell_residuals(data, after, c, masks)
     return from_cells(r0, r1, bar, rivals)
 
 
