@@ -27,7 +27,7 @@ from calibration.diagnosis.in_service.response import (ParamRange, channel_power
                                                        residual_power)
 from calibration.diagnosis.in_service.track import TrackSettings, fit_track, transmissibility2
 from calibration.diagnosis.in_service.wheels import WheelSettings, fit_polygon
-from calibration.models.assembly import beam_bending_shape
+from calibration.models.assembly import UNIFORM_BEAM_NODE, beam_bending_shape
 from calibration.models.car2d import (CarExtras, Output, build_car, damped_modes, frequency_response, state_space,
                                       undamped_modes)
 from calibration.models.simulate import simulate
@@ -59,6 +59,17 @@ def test_beam_bending_shape_is_a_free_free_mode_with_a_quarter_of_the_mass():
     assert abs(np.trapezoid(y, x)) < 1e-6 * L  # orthogonal to bounce
     assert abs(np.trapezoid(y * x, x)) < 1e-6 * L * L  # and to pitch
     assert phi(L / 2) == pytest.approx(1.0) and phi(-L / 2) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("node", [0.4, 0.5516849545952847, 0.7])
+def test_beam_bending_shape_puts_its_nodes_where_asked_and_is_the_uniform_beam_at_its_own(node):
+    L = 23.0
+    phi = beam_bending_shape(L, node)
+    assert abs(phi(node * L / 2)) < 1e-9 and abs(phi(-node * L / 2)) < 1e-9
+    assert phi(L / 2) == pytest.approx(1.0) and phi(-L / 2) == pytest.approx(1.0) and phi(0.0) < 0
+    if node == UNIFORM_BEAM_NODE:
+        uniform = beam_bending_shape(L)
+        assert all(phi(x) == pytest.approx(uniform(x), abs=1e-12) for x in np.linspace(-L / 2, L / 2, 9))
 
 
 def test_flexible_carbody_adds_its_bending_mode_and_leaves_the_rigid_ones_nearly_alone():

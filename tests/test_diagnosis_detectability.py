@@ -110,3 +110,12 @@ def test_none_lists_every_extension_and_what_it_rules_out(campaigns):
     assert "carbody_bending: not observable" in line
     written = diag.to_json()["detectability"]
     assert written == diag.detectability.to_json() and set(written) == set(EXTENSIONS)
+
+
+def test_an_effect_this_sensor_set_cannot_name_at_any_size_says_which_sensors_would():
+    from calibration.diagnosis.in_service.detectability import Limit
+
+    blind = Limit("carbody_bending", "bending_hz", "Hz", None, True, "why", "below", needs="carbody sensors")
+    assert blind.words() == "carbody_bending: not observable without carbody sensors"
+    weak = Limit("airspring_reservoir", "reservoir_ratio", "-", None, True, "why", "above")
+    assert weak.words() == "airspring_reservoir: not detectable within its range"

@@ -14,14 +14,14 @@ from calibration.models.car2d import CarExtras
 def test_a_combined_extension_makes_both_additions_from_its_own_parameters():
     both = combined(EXTENSIONS["carbody_bending"], EXTENSIONS["sensor_offset"])
     assert both.name == "carbody_bending+sensor_offset" and both.kind == "response"
-    assert [r.name for r in both.params] == ["bending_hz", "bending_damping", "bending_mass_ratio", "dx", "gyro_gain"]
-    extras, sensors = both.make({"bending_hz": 9.0, "bending_damping": 0.03, "bending_mass_ratio": 0.3,
-                                 "dx": 0.7, "gyro_gain": 1.1})
-    assert extras == CarExtras(bending_hz=9.0, bending_damping=0.03, bending_mass_ratio=0.3)
+    assert [r.name for r in both.params] == ["bending_hz", "bending_damping", "bending_mass_ratio", "bending_node",
+                                             "dx", "gyro_gain"]
+    bending = {"bending_hz": 9.0, "bending_damping": 0.03, "bending_mass_ratio": 0.3, "bending_node": 0.5}
+    extras, sensors = both.make({**bending, "dx": 0.7, "gyro_gain": 1.1})
+    assert extras == CarExtras(**bending)
     assert sensors == SensorModel(0.7, 1.1)
     three = combined(both, EXTENSIONS["cog_offset"])
-    extras, sensors = three.make({"bending_hz": 9.0, "bending_damping": 0.03, "bending_mass_ratio": 0.3,
-                                  "dx": 0.7, "gyro_gain": 1.1, "cog_offset": -0.5})
+    extras, sensors = three.make({**bending, "dx": 0.7, "gyro_gain": 1.1, "cog_offset": -0.5})
     assert extras.cog_offset == -0.5 and extras.bending_hz == 9.0 and sensors == SensorModel(0.7, 1.1)
     with pytest.raises(ValueError, match="only response extensions"):
         combined(EXTENSIONS["carbody_bending"], EXTENSIONS["track_flexibility"])
@@ -79,3 +79,48 @@ def test_a_gain_seen_in_every_held_out_cell_is_sure_one_carried_by_a_single_cell
     assert rival.word == "moderate" and "runner-up" in rival.why
     few = from_cells(np.ones(3), 0.5 * np.ones(3), bar=0.17, rivals=[])
     assert few.interval is None and few.word == "low"
+
+
+def _evidence(peak_coherence: float):
+    import numpy as np
+
+    from calibration.diagnosis.in_service.evidence import Evidence
+
+    peak = {"frequency_hz": 16.9, "over_floor": 5.5, "residual_share": 0.35, "input_coherence": peak_coherence,
+            "scaling": "fixed_frequency"}
+    channel = {"heldout_nrp": 0.2, "input_coherence": 0.1, "peaks": [peak]}
+    return Evidence(channels={"carbody_front_acc_z": channel},
+                    wheel_line={"over_floor": 0.0, "axle_asymmetry": 1.0}, track={}, parameters_at_bounds=(),
+                    masks=np.ones((4, 1), bool))
+
+
+def test_a_residual_peak_is_a_model_error_only_where_the_rail_input_explains_it():
+    """A peak coherent with the input is what the model could have predicted and did not; a
+    peak the input does not explain (excitation no sensor measures) is reported, not counted."""
+    from calibration.diagnosis.in_service import DiagnosisSettings
+    from calibration.diagnosis.in_service.evidence import alarms, notes
+
+    s = DiagnosisSettings()
+    coherent, incoherent = _evidence(s.coherence_alarm + 0.1), _evidence(s.coherence_alarm - 0.1)
+    assert len(alarms(coherent, s)) == 1 and notes(coherent, s) == []
+    assert alarms(incoherent, s) == [] and len(notes(incoherent, s)) == 1
+    assert "16.90 Hz" in notes(incoherent, s)[0] and "not coherent with the rail input" in notes(incoherent, s)[0]
+
+
+def test_a_bending_takes_the_campaigns_carbody_length_or_the_diagnosis_says_what_it_assumed(tmp_path):
+    from types import SimpleNamespace
+
+    from calibration.data.metadata import Sensor
+    from calibration.diagnosis.in_service.records import BOGIE_SPACING_SHARE, layout
+    from calibration.diagnosis.in_service.response import on_car
+    from conftest import TINY_SENSORS, tiny_meta
+
+    axles = tuple(Sensor(f"axle{j}_acc_z", "acceleration", "g", f"axle{j}", "z", (x, 1.0, 0.45))
+                  for j, x in ((1, 9.25), (2, 6.75)))
+    geometry = {"bogie_semi_spacing": 8.0, "semi_wheelbase": 1.25}
+    given = layout(SimpleNamespace(meta=tiny_meta(sensors=TINY_SENSORS + axles, geometry={**geometry, "length": 26.4}),
+                                   root=tmp_path))
+    assert given.length == 26.4 and not given.length_assumed
+    assert on_car(CarExtras(bending_hz=9.0), given).carbody_length == 26.4
+    assumed = layout(SimpleNamespace(meta=tiny_meta(sensors=TINY_SENSORS + axles, geometry=geometry), root=tmp_path))
+    assert assumed.length == pytest.approx(16.0 / BOGIE_SPACING_SHARE) and assumed.length_assumed

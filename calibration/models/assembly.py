@@ -39,15 +39,27 @@ class ElasticMode:
     damping_ratio: float = 0.0
 
 
-def beam_bending_shape(length: float) -> Callable[[float], float]:
+#: Nodes of a uniform free-free beam's first bending, as a fraction of its half-length from
+#: the centre (the roots of the shape at 0.2242 and 0.7758 of the length).
+UNIFORM_BEAM_NODE = 0.5516849545952847
+
+
+def beam_bending_shape(length: float, node: float | None = None) -> Callable[[float], float]:
     """First free-free bending shape of a uniform beam of ``length`` [m], centred on 0 and
     scaled to 1 at its ends (beta L = 4.7300). Its generalised mass for that scaling is a
-    quarter of the beam's mass; it is orthogonal to bounce and pitch."""
+    quarter of the beam's mass; it is orthogonal to bounce and pitch.
+
+    ``node``: the nodes at +-node x length / 2 instead (a fraction of the half-length). A
+    real carbody's mass is not uniform (cab ends, underfloor equipment, bogie masses), and
+    its nodes move; the uniform shape stretched along x so that its nodes sit there, again
+    1 at the ends, is a one-parameter family holding the uniform beam at ``node`` =
+    :data:`UNIFORM_BEAM_NODE`."""
     bl = 4.730040744862704
     s = (np.cosh(bl) - np.cos(bl)) / (np.sinh(bl) - np.sin(bl))
+    stretch = 1.0 if node is None else UNIFORM_BEAM_NODE / node
 
     def raw(u):
-        b = bl * (u / length + 0.5)
+        b = bl * (stretch * u / length + 0.5)
         return np.cosh(b) + np.cos(b) - s * (np.sinh(b) + np.sin(b))
 
     end = raw(length / 2)

@@ -46,6 +46,8 @@ class CarExtras:
     bending_hz : [Hz] first vertical bending of the carbody (free-free uniform beam shape of
         ``carbody_length``, scaled to 1 at the ends, generalised mass ``bending_mass_ratio``
         x m_v, damping ratio ``bending_damping``); None: a rigid carbody.
+    bending_node : the bending's nodes at +- this fraction of the half-length
+        (:func:`~calibration.models.assembly.beam_bending_shape`); None: a uniform beam's.
     reservoir_ratio : each air spring gets a reservoir branch in parallel with k_s: a
         stiffness ``reservoir_ratio`` x k_s in series with an orifice damper whose corner
         frequency k_r / (2 pi c_o) is ``reservoir_corner_hz``. The node between them carries
@@ -63,6 +65,7 @@ class CarExtras:
     bending_hz: float | None = None
     bending_damping: float = 0.02
     bending_mass_ratio: float = 0.25
+    bending_node: float | None = None
     carbody_length: float = 23.0
     reservoir_ratio: float = 0.0
     reservoir_corner_hz: float = 2.5
@@ -88,7 +91,7 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
     xw = wheelset_positions(p)
     modes = ()
     if ex.bending_hz is not None:
-        modes = (ElasticMode("bending", beam_bending_shape(ex.carbody_length), ex.bending_mass_ratio * p.m_v,
+        modes = (ElasticMode("bending", beam_bending_shape(ex.carbody_length, ex.bending_node), ex.bending_mass_ratio * p.m_v,
                              ex.bending_hz, ex.bending_damping),)
     bodies = [Body("carbody", p.m_v, ex.cog_offset, p.J_v, modes)]
     bodies += [Body(f"bogie{i + 1}", p.m_b, xb[i], p.J_b) for i in range(2)]

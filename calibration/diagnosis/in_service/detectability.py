@@ -72,6 +72,9 @@ class Magnitude:
         return float(self.weak + t * (self.strong - self.weak))
 
 
+#: effects on the carbody itself: what they give back to the bogies through the air springs
+#: is all a bogie-only sensor set has of them
+CARBODY_EFFECTS = ("carbody_bending", "cog_offset")
 _EXTRAS = CarExtras()
 #: the response extensions' magnitudes (their ranges are the extensions' own search ranges)
 RESPONSE_MAGNITUDES = {
@@ -100,6 +103,8 @@ class Limit:
     observable: bool
     why: str
     stronger: str  # "above" or "below": which side of the limit is the stronger effect
+    # the sensors it would take (e.g. "carbody sensors"), when this set cannot name it at any size
+    needs: str | None = None
 
     def to_json(self) -> dict:
         return {"parameter": self.parameter, "unit": self.unit, "detectable_beyond": self.detectable_beyond,
@@ -108,6 +113,8 @@ class Limit:
     def words(self) -> str:
         if not self.observable:
             return f"{self.name}: not observable with these sensors"
+        if self.detectable_beyond is None and self.needs:
+            return f"{self.name}: not observable without {self.needs}"
         if self.detectable_beyond is None:
             return f"{self.name}: not detectable within its range"
         op = ">=" if self.stronger == "above" else "<="
@@ -232,6 +239,9 @@ def _response_limit(name: str, r: _Responses, bar: float) -> Limit:
     elif limit is None:
         why = (f"not detectable within its range {rng}{held}: at {mag.strong:g} {mag.unit} the predicted held-out "
                f"gain less its scatter is {strong:.0%}, under the bar of {bar:.0%}")
+        if name in CARBODY_EFFECTS and not any(o.body == "carbody" for o in r.data.layout.responses):
+            return Limit(name, mag.parameter, mag.unit, None, True, f"{why}; {_carbody_words(r.data)}", stronger,
+                         needs="carbody sensors")
     else:
         side = "and above" if stronger == "above" else "and below"
         what = f"|{mag.parameter}|" if mag.signed else mag.parameter

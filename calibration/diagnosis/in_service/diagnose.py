@@ -52,10 +52,10 @@ from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import BaselineStart, baseline_start
 from .detectability import Detectability, detectability
-from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, scores
+from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, notes, scores
 from .extensions import EXTENSIONS
 from .hypotheses import Hypothesis, fit_hypothesis
-from .records import Record, layout, read_records, statistics
+from .records import BOGIE_SPACING_SHARE, Record, layout, read_records, statistics
 from .response import fit_response
 from .result import InServiceDiagnosis
 from .selection import Selection, select
@@ -122,14 +122,19 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
     sel = select(data, hyps, base_fit, ev, say)
-    words = alarms(sel.evidence_left(data, ev), settings)
+    left = sel.evidence_left(data, ev)
+    words = alarms(left, settings)
     cause = sel.cause_name() or ("unexplained" if words else "none")
     best = None
     if sel.causes:  # the extended model: every vehicle finding together, else the rail or wheel cause
         vehicle_cause = any(f.hypothesis.kind == "response" for f in sel.causes)
         best = sel.vehicle_hypothesis if vehicle_cause else max((f.hypothesis for f in sel.causes),
                                                                 key=lambda h: h.penalised_gain)
-    summary = _summary(cause, sel, words, ev, hyps, settings, detect) + start.describe()
+    summary = _summary(cause, sel, words + notes(left, settings), ev, hyps, settings, detect) + start.describe()
+    lay = data.layout
+    if lay.length_assumed and any(o.body == "carbody" for o in lay.responses):
+        summary.append(f"carbody length: campaign.toml's [vehicle] gives none; a bending's shape assumed "
+                       f"{lay.length:.1f} m (the bogie spacing over {BOGIE_SPACING_SHARE})")
     stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped
     stages.close()
     return InServiceDiagnosis(

@@ -175,9 +175,12 @@ def channel_evidence(data: DiagnosisData, fit: ResponseFit, masks: np.ndarray | 
         share = R[:, c] / np.maximum(P[:, c], 1e-300)
         peaks = []
         for f0, rr, sh in _peaks(f, ratio, share, (0.5, 40.0), s.peak_alarm):
-            peak = {"frequency_hz": f0, "over_floor": rr, "residual_share": sh, **_speed_scaling(data, fit, c, f0)}
+            k = int(np.argmin(np.abs(f - f0)))
+            near = slice(max(k - 2, 0), k + 3)
+            peak = {"frequency_hz": f0, "over_floor": rr, "residual_share": sh,
+                    "input_coherence": float(np.average(coh[near, c], weights=R[near, c] + 1e-300)),
+                    **_speed_scaling(data, fit, c, f0)}
             if pairs:
-                k = int(np.argmin(np.abs(f - f0)))
                 x = Rx[k, pairs["i"], pairs["j"]]
                 peak["front_rear_residual"] = {
                     "phase_deg": float(np.degrees(np.angle(x))),
@@ -254,26 +257,48 @@ def systematic(channel: dict) -> dict:
     return {"input_coherence": channel["input_coherence"], "peak_over_floor": max(peaks, default=0.0)}
 
 
+def _peak_words(name: str, p: dict) -> str:
+    kind = p.get("scaling", "unknown").replace("_", " ")
+    extra = f", wavelength {p['wavelength_m']:.2f} m" if "wavelength_m" in p else ""
+    fr = p.get("front_rear_residual")
+    if fr and fr["coherence"] > 0.5:
+        extra += (", car ends in phase" if abs(fr["phase_deg"]) < 45 else
+                  ", car ends in anti-phase" if abs(fr["phase_deg"]) > 135 else "")
+    return f"{name}: residual peak at {p['frequency_hz']:.2f} Hz, {p['over_floor']:.1f}x its floor ({kind}{extra})"
+
+
+def _peak_counts(p: dict, s: DiagnosisSettings) -> bool:
+    return p["over_floor"] >= s.peak_alarm and p["residual_share"] > PEAK_SHARE
+
+
 def alarms(ev: Evidence, s: DiagnosisSettings) -> list[str]:
     """What in the evidence is systematic (the baseline does not explain the data within
-    the noise), in words."""
+    the noise), in words.
+
+    A residual peak is systematic where the residual in its bands is coherent with the rail
+    input: the model could have predicted it and did not. A peak the input does not
+    explain is response to an excitation the sensors do not measure (the rear bogie's own
+    rail, a load moving between journeys), which no model driven by these inputs can
+    predict; :func:`notes` reports it."""
     out = []
     for name, c in ev.channels.items():
         if c["input_coherence"] >= s.coherence_alarm:
             out.append(f"{name}: residual coherent with the rail input ({c['input_coherence']:.2f}), "
                        "a systematic model error")
         for p in c["peaks"]:
-            if p["over_floor"] >= s.peak_alarm and p["residual_share"] > PEAK_SHARE:
-                kind = p.get("scaling", "unknown").replace("_", " ")
-                extra = f", wavelength {p['wavelength_m']:.2f} m" if "wavelength_m" in p else ""
-                fr = p.get("front_rear_residual")
-                if fr and fr["coherence"] > 0.5:
-                    extra += (", car ends in phase" if abs(fr["phase_deg"]) < 45 else
-                              ", car ends in anti-phase" if abs(fr["phase_deg"]) > 135 else "")
-                out.append(f"{name}: residual peak at {p['frequency_hz']:.2f} Hz, {p['over_floor']:.1f}x its floor "
-                           f"({kind}{extra})")
+            if _peak_counts(p, s) and p.get("input_coherence", 1.0) >= s.coherence_alarm:
+                out.append(_peak_words(name, p))
     w = ev.wheel_line
     if w["over_floor"] >= s.line_alarm and w["axle_asymmetry"] >= s.asymmetry:
         out.append(f"axle-box consistency: line at wavelength {w['wavelength_m']:.3f} m, {w['over_floor']:.0f}x "
                    f"the floor, {w['axle_asymmetry']:.1f}x stronger on wheelset {w['stronger_on_wheelset']}")
     return out
+
+
+def notes(ev: Evidence, s: DiagnosisSettings) -> list[str]:
+    """Residual peaks that are not systematic (:func:`alarms`): strong, but not coherent
+    with the rail input."""
+    return [f"{_peak_words(name, p)}; not coherent with the rail input ({p['input_coherence']:.2f}): response to "
+            "an excitation the sensors do not measure, not counted as a model error"
+            for name, c in ev.channels.items() for p in c["peaks"]
+            if _peak_counts(p, s) and p.get("input_coherence", 1.0) < s.coherence_alarm]

@@ -113,7 +113,7 @@ def heldout_losses(names, before, after, best: int, max_loss: float) -> list[str
 
 def _extras_json(ex: CarExtras) -> dict:
     d = {k: getattr(ex, k) for k in ("cog_offset", "bending_hz", "bending_damping", "bending_mass_ratio",
-                                     "reservoir_ratio", "reservoir_corner_hz")}
+                                     "bending_node", "carbody_length", "reservoir_ratio", "reservoir_corner_hz")}
     return {k: v for k, v in d.items() if v not in (None, 0.0) or k in ("cog_offset",)}
 
 

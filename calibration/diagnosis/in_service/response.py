@@ -50,11 +50,16 @@ def model_outputs(lay: Layout, sensors: SensorModel) -> tuple[list[Output], np.n
     return outs, np.array(gains)
 
 
+def on_car(extras: CarExtras, lay: Layout) -> CarExtras:
+    """``extras`` on the campaign's carbody (its length shapes a bending)."""
+    return extras if extras.carbody_length == lay.length else replace(extras, carbody_length=lay.length)
+
+
 def transfer(p: CarParameters, extras: CarExtras, sensors: SensorModel, lay: Layout,
              f: np.ndarray) -> np.ndarray:
     """(n_band, n_response, 4): responses per unit rail acceleration under wheelsets 1-4."""
     outs, gains = model_outputs(lay, sensors)
-    H = frequency_response(build_car(p, extras=extras), outs, f)
+    H = frequency_response(build_car(p, extras=on_car(extras, lay)), outs, f)
     w2 = (2 * np.pi * f) ** 2
     return -H / w2[:, None, None] * gains[None, :, None]
 
@@ -136,7 +141,7 @@ class _Problem:
         vals = {r.name: float(np.exp(xi) if r.log else xi) for r, xi in zip(self.ranges, x)}
         p = self.base.replace(**{k: vals[k] for k in self.bounds})
         extras, sensors = self.make({r.name: vals[r.name] for r in self.ranges[self.nb:]})
-        return p, extras, sensors, vals
+        return p, on_car(extras, self.lay), sensors, vals
 
     def resid(self, x):
         self.count += 1
