@@ -92,6 +92,7 @@ from calibration.diagnosis.in_service import diagnose_in_service  # noqa: E402
 from calibration.truth.effects import EFFECTS, EffectChoice, effect_spec  # noqa: E402
 from calibration.truth.independent import VEHICLES, IndependentSettings, synth_in_service_independent  # noqa: E402
 from calibration.truth.independent import parse_hidden  # noqa: E402
+from calibration.truth.independent.campaign import TRUTH_REVISION  # noqa: E402
 from calibration.truth.independent.hidden import RANGES  # noqa: E402
 from calibration.truth.independent.irregularity import LineSpec as IndependentLine  # noqa: E402
 from calibration.truth.in_service import InServiceSettings, synth_in_service  # noqa: E402
@@ -295,7 +296,8 @@ def _in_own_process(c: dict) -> dict:
 
 def _made_for(c: dict) -> dict:
     """What makes bench campaign ``c``: a kept campaign made for the same is diagnosed again."""
-    return {k: c[k] for k in ("seed", "vehicle", "journeys", "length_km", "carbody_sensors", "effect")}
+    return {**{k: c[k] for k in ("seed", "vehicle", "journeys", "length_km", "carbody_sensors", "effect")},
+            "truth_revision": TRUTH_REVISION}
 
 
 def _rate(k: int, n: int) -> str:

@@ -162,6 +162,53 @@ def test_small_campaign_is_read_back_by_railcal(tmp_path):
     assert (tmp_path / "c.truth.json").is_file() and not (tmp_path / "c" / "c.truth.json").exists()
     f = truth["frequencies_hz"]
     assert f["carbody_bounce"] < f["carbody_pitch"] < f["bogie_bounce"]
+    gain, coherence = _bogie_from_axle_boxes(run, truth)
+    print(f"bogie over its prediction from the axle boxes: gain {gain:.3f}, coherence {coherence:.3f}")
+    assert gain == pytest.approx(1.0, abs=0.1) and coherence > 0.8
+
+
+def _bogie_from_axle_boxes(run, truth) -> tuple[float, float]:
+    """The recorded bogie acceleration over its prediction by railcal's 2D car at the
+    truth's nominal values from the recorded axle-box means (wheelsets 1 and 2), 3-15 Hz:
+    the sensor chain hands the diagnosis an input that drives what it measures."""
+    import scipy.signal
+
+    from calibration.models.car2d import Output, build_car as build_2d, frequency_response
+    from calibration.models.parameters import CarParameters
+
+    p = truth["parameters"]
+    car = CarParameters(m_v=p["carbody_mass_nominal"], J_v=p["carbody_pitch_inertia_nominal"], m_b=p["m_b"][0],
+                        J_b=p["J_b"], m_w=p["m_w"], k_p=p["k_p"], c_p=p["c_p"], k_s=p["k_s_nominal"], c_s=p["c_s"],
+                        L_v=p["L_v"], L_b=p["L_b"])
+    ch = run.channels
+    u = [0.5 * (ch[f"axle{j}_left_acc_z"] + ch[f"axle{j}_right_acc_z"]) for j in (1, 2)]
+    y = ch["bogie1_acc_z"]
+    dt = float(np.median(np.diff(run.time)))
+    f = np.fft.rfftfreq(y.size, dt)
+    band = (f > 0.5) & (f < 60.0)
+    H = frequency_response(build_2d(car), [Output("b", "acceleration", "bogie1", car.L_v + 0.45)], f[band])
+    predicted = np.zeros(f.size, complex)
+    for j in range(2):
+        predicted[band] += -H[:, 0, j] / (2 * np.pi * f[band]) ** 2 * np.fft.rfft(u[j] - u[j].mean())[band]
+    yp = np.fft.irfft(predicted, y.size)
+    fw, sxy = scipy.signal.csd(yp, y - y.mean(), 1 / dt, nperseg=1024)
+    _, sxx = scipy.signal.welch(yp, 1 / dt, nperseg=1024)
+    _, syy = scipy.signal.welch(y - y.mean(), 1 / dt, nperseg=1024)
+    m = (fw > 3.0) & (fw < 15.0)
+    return float(abs(sxy[m].sum()) / sxx[m].sum()), float(abs(sxy[m].sum()) ** 2 / (sxx[m].sum() * syy[m].sum()))
+
+
+def test_an_axle_boxs_roll_term_follows_its_side_and_cancels_in_the_mean():
+    from calibration.truth.independent.campaign import roll_acceleration
+
+    dist = np.linspace(0.0, 100.0, 2001)
+    cross = 1e-3 * np.sin(2 * np.pi * dist / 20.0)  # left rail above the right, varying
+    v, a_x = np.full_like(dist, 30.0), np.zeros_like(dist)
+    left, right = roll_acceleration(1.0, cross, dist, v, a_x), roll_acceleration(-1.0, cross, dist, v, a_x)
+    assert np.max(np.abs(left + right)) == 0.0 and np.max(np.abs(left)) == pytest.approx(900 * 1e-3 * (2 * np.pi / 20) ** 2 / 1.5, rel=0.01)
+    # where the cross level is at its peak, the left side is at the top of its swing: accelerating down
+    k = int(np.argmin(np.abs(dist - 5.0)))
+    assert left[k] < 0 < right[k]
 
 
 @pytest.mark.slow(seconds=25)

@@ -28,6 +28,10 @@ from .vehicles import vehicle as library_vehicle
 
 TRUTH_FORMAT = "railcal-truth/1"
 AXLE_BOX_Y, SENSOR_HEIGHT, FLOOR_HEIGHT = 1.0, 0.7, 1.2  # [m]
+#: Changes when a campaign of the same seed and settings would come out different (a kept
+#: bench campaign of another revision is made again): 2, the axle boxes' roll term (it had
+#: the same sign on both sides, so their mean carried the cross level).
+TRUTH_REVISION = 2
 GAUGE = 1.5  # [m] between the rails' contact points: cross level / GAUGE is the roll angle
 
 
@@ -71,6 +75,16 @@ class IndependentSettings:
                             "gyro_drift", "gps_error", "speed_noise", "recording_noise")
         if len(self.noise) != 4 or min(self.noise) < 0:
             raise ValueError(f"IndependentSettings.noise must be four rms values >= 0, got {self.noise!r}")
+
+
+def roll_acceleration(y: float, cross_level: np.ndarray, dist: np.ndarray, v: np.ndarray,
+                      a_x: np.ndarray) -> np.ndarray:
+    """Vertical acceleration [m/s^2] of a point ``y`` [m] left of the wheelset's centre
+    from the wheelset's roll as it follows the cross level (left rail minus right rail,
+    along ``dist``) at speed ``v`` and longitudinal acceleration ``a_x``: y / GAUGE times
+    d^2c/dt^2 = v^2 c'' + a_x c'. Its two axle boxes' mean carries none of it."""
+    dc = np.gradient(cross_level, dist, edge_order=1)
+    return y / GAUGE * (v ** 2 * np.gradient(dc, dist) + a_x * dc)
 
 
 def campaign_sensors(spec: VehicleSpec, s: IndependentSettings) -> tuple[Sensor, ...]:
@@ -213,11 +227,8 @@ def _journey(p: CarParameters, line: Line, s: IndependentSettings, sensors, fx: 
     for x in sensors:
         if x.body.startswith("axle"):
             j = int(x.body[4:]) - 1
-            side = 1.0 if "left" in x.name else -1.0
             c = line.cross_level(dist + m.wheel_x[j])
-            dc = np.gradient(c, dist, edge_order=1)
-            roll_acc = side * x.position[1] / GAUGE * (v ** 2 * np.gradient(dc, dist) + a_x * dc)
-            a_z = out[f"axle{j + 1}"][2][:, 1] + roll_acc
+            a_z = out[f"axle{j + 1}"][2][:, 1] + roll_acceleration(x.position[1], c, dist, v, a_x)
             raw[x.name] = accelerometer(a_z, a_x, 0.0, inst["tilt"][x.name]) / G
         elif x.name == "bogie1_acc_z":
             q, _, acc = out["bogie1"]
@@ -325,7 +336,8 @@ def synth_in_service_independent(out, *, seed: int = 0, settings: IndependentSet
     wall = time.perf_counter() - t0
     nominal = _car(spec, s, _Effects((), spec, np.random.default_rng(0)), None, 0.0, c_p, c_s)
     truth = {
-        "format": TRUTH_FORMAT, "kind": "in_service", "simulator": "independent exudyn truth", "seed": seed,
+        "format": TRUTH_FORMAT, "kind": "in_service", "simulator": "independent exudyn truth",
+        "revision": TRUTH_REVISION, "seed": seed,
         "campaign": out.name, "vehicle": {"name": spec.name, "reference": spec.reference, "notes": spec.notes},
         **_modes_json(nominal),
         "rigid_frequencies_hz": {k: v[0] for k, v in _rigid(nominal).items()},
