@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from calibration.diagnosis.in_service.extensions import (BENDING_FAULT_HZ, EXTENSIONS, SOFT_TRACK_N_PER_M,
-                                                         combined)
+from calibration.diagnosis.in_service.extensions import (BENDING_FAULT_HZ, EXTENSIONS, SENSOR_PLACED_WITHIN_M,
+                                                         SOFT_TRACK_N_PER_M, combined)
 from calibration.diagnosis.in_service.response import SensorModel
 from calibration.models.car2d import CarExtras
 
@@ -37,8 +37,16 @@ def test_a_size_above_the_catalogues_fault_range_is_a_property(name, parameter, 
 
 
 def test_offsets_reservoirs_and_polygons_are_faults_at_any_size():
-    for name in ("cog_offset", "sensor_offset", "airspring_reservoir", "wheel_out_of_round"):
+    for name in ("cog_offset", "airspring_reservoir", "wheel_out_of_round"):
         assert EXTENSIONS[name].normal_above is None and not EXTENSIONS[name].is_property({"anything": 1e9})
+
+
+def test_a_sensor_found_where_it_was_declared_is_its_calibration_not_an_offset():
+    ext = EXTENSIONS["sensor_offset"]
+    assert ext.is_property({"dx": -0.5 * SENSOR_PLACED_WITHIN_M, "gyro_gain": 0.97})
+    assert not ext.is_property({"dx": 3 * SENSOR_PLACED_WITHIN_M, "gyro_gain": 1.0})
+    assert not ext.is_property({"dx": -3 * SENSOR_PLACED_WITHIN_M, "gyro_gain": 1.0})
+    assert "installation's tolerance" in ext.normal_words()
 
 
 def _hypothesis(gain: float, left: float | None, losses=()):

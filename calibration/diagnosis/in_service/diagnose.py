@@ -167,9 +167,9 @@ def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, h
     elif not sel.causes:
         out.append("none: no effect above these sizes: " + detect.words())
     for f in sel.properties:
-        name, bound = EXTENSIONS[f.name].normal_above
-        out.append(f"property, not a cause: {f.name} with {_values(f.parameters)} ({name} above {bound:.4g}, "
-                   f"the catalogue's fault range; kept in the model, it gains {f.gain:.0%} on {f.best_channel})")
+        out.append(f"property, not a cause: {f.name} with {_values(f.parameters)} "
+                   f"({EXTENSIONS[f.name].normal_words()}; kept in the model, it gains {f.gain:.0%} on "
+                   f"{f.best_channel})")
     out += alarm_words
     found = [f.hypothesis for f in sel.findings]
     for h in hyps:

@@ -30,6 +30,10 @@ GYRO_SCALE_ERROR = 0.05
 #: centre: 0.55 for a uniform beam; heavy ends (cabs, end equipment, the bogie pivots)
 #: move them inwards, a heavy middle outwards.
 BENDING_NODE_RANGE = (0.35, 0.75)
+#: A bogie sensor found this close to its declared x is where the drawing puts it (a
+#: mounting tolerance; the catalogue's offsets are 0.3-1.5 m): what the extension then gains
+#: is its gyro's scale error within GYRO_SCALE_ERROR, the sensor's calibration, not a fault.
+SENSOR_PLACED_WITHIN_M = 0.1
 #: The effects catalogue's track flexibility is a soft to medium track, 20-80 MN/m per
 #: wheelset; every track gives, so a stiffer track is reported as found, not as a cause.
 SOFT_TRACK_N_PER_M = 80.0e6
@@ -48,6 +52,9 @@ class Extension:
     # (parameter, bound): fitted above the bound, the extension describes what every vehicle
     # or track has (a carbody bends, a track gives), a property of this one, not a fault
     normal_above: tuple[str, float] | None = None
+    # (parameter, bound): fitted within +-bound, it describes an installation's tolerance
+    # (a sensor placed to within a few centimetres, a gyro's scale within its data sheet's)
+    normal_within: tuple[str, float] | None = None
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -58,10 +65,25 @@ class Extension:
     def is_property(self, parameters: dict) -> bool:
         """Do these fitted parameters describe a property of a normal vehicle or track
         (:attr:`normal_above`) rather than the fault the extension is named after?"""
+        if self.normal_within is not None:
+            name, bound = self.normal_within
+            if parameters.get(name) is not None and abs(parameters[name]) < bound:
+                return True
         if self.normal_above is None:
             return False
         name, bound = self.normal_above
         return parameters.get(name) is not None and parameters[name] > bound
+
+    def normal_words(self) -> str:
+        """When a fitted size is a property, in words."""
+        out = []
+        if self.normal_above is not None:
+            out.append(f"{self.normal_above[0]} above {self.normal_above[1]:.4g}, the top of the catalogue's fault "
+                       "range")
+        if self.normal_within is not None:
+            out.append(f"|{self.normal_within[0]}| under {self.normal_within[1]:.4g}, within an installation's "
+                       "tolerance")
+        return " or ".join(out)
 
     @property
     def n_params(self) -> int:
@@ -75,7 +97,8 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
               "bogie accelerometer off its declared x (dx) and pitch gyro scale error (gyro_gain)",
               (ParamRange("dx", -2.5, 2.5, log=False), ParamRange("gyro_gain", 1 - GYRO_SCALE_ERROR,
                                                                   1 + GYRO_SCALE_ERROR)),
-              lambda v: (CarExtras(), SensorModel(v["dx"], v["gyro_gain"]))),
+              lambda v: (CarExtras(), SensorModel(v["dx"], v["gyro_gain"])),
+              normal_within=("dx", SENSOR_PLACED_WITHIN_M)),
     Extension("carbody_bending", "response",
               "carbody first vertical bending mode (free-free beam shape, its nodes where the carbody's mass "
               "puts them): frequency, damping, modal mass, node",
