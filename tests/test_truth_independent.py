@@ -37,6 +37,17 @@ def test_fe_beam_first_bending_matches_the_closed_form():
     assert f[1] == pytest.approx(61.673 / 22.373 * f[0], rel=0.05)
 
 
+@pytest.mark.parametrize("f1", [8.0, 14.0])
+def test_a_bending_asked_for_is_the_carbody_beams_own_and_its_stiffness_the_same_on_every_journey(f1):
+    spec = INTERCITY
+    nominal = car_parameters(spec, bending_hz=f1)
+    assert free_beam_frequencies(nominal.x_nodes, nominal.mu, nominal.EI, count=1)[0] == pytest.approx(f1, rel=1e-6)
+    full = {pl.name: pl.capacity * pl.fill[1] for pl in spec.payloads}
+    loaded = car_parameters(spec, bending_hz=f1, payload=full, payload_centre=1.0)
+    assert loaded.EI == nominal.EI
+    assert free_beam_frequencies(loaded.x_nodes, loaded.mu, loaded.EI, count=1)[0] < f1  # a heavier carbody
+
+
 def test_air_spring_stiffens_with_compression_and_load():
     area, n, volume = 0.3, 1.3, 0.12
     z = np.linspace(-0.03, 0.03, 7)

@@ -65,7 +65,8 @@ class VehicleSpec:
     equipment and payloads listed); ``J_v`` the pitch inertia [kg m^2] its mass
     distribution aims at (with the nominal payload), reachable only within what a beam
     with non-negative mass per length allows; ``bending_hz`` the first free-free bending
-    of the carbody beam (uniform-beam closed form)."""
+    of the carbody beam with its structure and nominal floor payload (the beam's own
+    eigenvalue)."""
 
     name: str
     reference: str
