@@ -278,8 +278,8 @@ def alarms(ev: Evidence, s: DiagnosisSettings) -> list[str]:
     A residual peak is systematic where the residual in its bands is coherent with the rail
     input: the model could have predicted it and did not. A peak the input does not
     explain is response to an excitation the sensors do not measure (the rear bogie's own
-    rail, a load moving between journeys), which no model driven by these inputs can
-    predict; :func:`notes` reports it."""
+    rail where its wheelsets carry no sensor, machinery on the carbody), which no model
+    driven by these inputs can predict; :func:`notes` reports it."""
     out = []
     for name, c in ev.channels.items():
         if c["input_coherence"] >= s.coherence_alarm:

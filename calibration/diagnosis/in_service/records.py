@@ -75,8 +75,8 @@ class RecordSettings:
 
 
 #: Bogie centres' spacing as a share of the carbody length, for a campaign that gives no
-#: length: 0.70 for the seed's intercity car (16 m of 23 m), 0.72 for ICE2, 0.68 for the
-#: Manchester benchmark coach.
+#: length: 0.70 for the seed's intercity car (16 m of 23 m), 0.72 for the Manchester
+#: benchmark coach (19 m of 26.4 m), 0.69-0.86 over the independent truth's library.
 BOGIE_SPACING_SHARE = 0.7
 
 
