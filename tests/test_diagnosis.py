@@ -388,6 +388,13 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
     else:
         assert cause["interval_95"][0] <= cause["interval_95"][1] and cause["confidence"] in ("high", "moderate")
     assert result["confidence"] == cause["confidence"]
+    for h in result["hypotheses"]:  # the runners-up carry their intervals too (a track or wheel fit: none)
+        assert set(h) >= {"interval_95", "heldout_cells"}
+        if h["kind"] == "response" and h["heldout_cells"] >= 4:
+            assert h["interval_95"][0] <= h["interval_95"][1]
+        elif h["kind"] != "response":
+            assert h["interval_95"] is None
+    assert any(h["name"] == "cog_offset" and h["interval_95"] == cause["interval_95"] for h in result["hypotheses"])
     assert result["baseline"]["start"] == truth["parameters"] and str(cal) in result["baseline"]["source"]
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])

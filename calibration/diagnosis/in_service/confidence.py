@@ -71,6 +71,24 @@ def response_confidence(data: DiagnosisData, before: ResponseFit, after: Respons
     return from_cells(r0, r1, bar, rivals)
 
 
+def hypothesis_intervals(data: DiagnosisData, before: ResponseFit, hyps, masks: np.ndarray) -> dict:
+    """Each response hypothesis's held-out gain over ``before`` with its 95 % interval, as a
+    finding's (:func:`response_confidence`, judged against the bar alone): name ->
+    :class:`Confidence`. The runners-up's intervals say how far behind they really are."""
+    s = data.settings
+    baseline_cells: dict = {}  # a channel's baseline residuals per cell, shared by the hypotheses
+    out = {}
+    for h in hyps:
+        if h.kind != "response" or h.fit is None or h.best_channel is None:
+            continue
+        c = data.layout.response_names.index(h.best_channel)
+        if c not in baseline_cells:
+            baseline_cells[c] = cell_residuals(data, before, c, masks)
+        out[h.name] = from_cells(baseline_cells[c], cell_residuals(data, h.fit, c, masks),
+                                 s.min_gain + s.penalty * h.extension.n_params, [])
+    return out
+
+
 def from_cells(r0: np.ndarray, r1: np.ndarray, bar: float, rivals: list[float]) -> Confidence:
     """The confidence of a gain from the held-out cells' residual powers before (``r0``) and
     after (``r1``) (see the module's description)."""

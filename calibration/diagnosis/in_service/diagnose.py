@@ -51,6 +51,7 @@ from ...data.errors import CampaignError
 from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import BaselineStart, baseline_start
+from .confidence import hypothesis_intervals
 from .detectability import Detectability, detectability
 from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, notes, scores
 from .extensions import EXTENSIONS
@@ -122,6 +123,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
     sel = select(data, hyps, base_fit, ev, say)
+    intervals = hypothesis_intervals(data, base_fit, hyps, ev.masks)
     left = sel.evidence_left(data, ev)
     words = alarms(left, settings)
     cause = sel.cause_name() or ("unexplained" if words else "none")
@@ -130,7 +132,8 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         vehicle_cause = any(f.hypothesis.kind == "response" for f in sel.causes)
         best = sel.vehicle_hypothesis if vehicle_cause else max((f.hypothesis for f in sel.causes),
                                                                 key=lambda h: h.penalised_gain)
-    summary = _summary(cause, sel, words + notes(left, settings), ev, hyps, settings, detect) + start.describe()
+    summary = _summary(cause, sel, words + notes(left, settings), ev, hyps, settings, detect, intervals) \
+        + start.describe()
     lay = data.layout
     if lay.length_assumed and any(o.body == "carbody" for o in lay.responses):
         summary.append(f"carbody length: campaign.toml's [vehicle] gives none; a bending's shape assumed "
@@ -141,7 +144,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         campaign=campaign.root, cause=cause, summary=tuple(summary), evidence=ev, hypotheses=tuple(hyps), best=best,
         baseline=base_fit, start=start, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
         heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats,
-        detectability=detect, findings=sel.findings)
+        detectability=detect, findings=sel.findings, intervals=intervals)
 
 
 def _values(parameters: dict) -> str:
@@ -149,7 +152,7 @@ def _values(parameters: dict) -> str:
 
 
 def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, hyps: list[Hypothesis],
-             s: DiagnosisSettings, detect: Detectability) -> list[str]:
+             s: DiagnosisSettings, detect: Detectability, intervals: Mapping) -> list[str]:
     """The diagnosis in words: the causes (``none`` with the smallest effects this campaign
     could have detected, :mod:`.detectability`), the properties found, the alarms left, the
     hypotheses that gained but were not named and why, all hypotheses by gain, the
@@ -184,7 +187,12 @@ def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, h
                        f"{h.systematic_left:.0%} of its systematic residual (error x input coherence): "
                        "it does not explain it")
     others = sorted(hyps, key=lambda h: -h.penalised_gain)
-    out.append("hypotheses by held-out gain: " + ", ".join(f"{h.name} {h.gain:.0%}" for h in others))
+    def gain(h):
+        c = intervals.get(h.name)
+        return f"{h.gain:.0%}" if c is None or c.interval is None else \
+            f"{h.gain:.0%} ({c.interval[0]:.0%} to {c.interval[1]:.0%})"
+
+    out.append("hypotheses by held-out gain (95 % interval): " + ", ".join(f"{h.name} {gain(h)}" for h in others))
     if ev.parameters_at_bounds:
         out.append("baseline parameters at their bounds: " + ", ".join(ev.parameters_at_bounds))
     return out

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .baseline import BaselineStart
@@ -45,6 +45,8 @@ class InServiceDiagnosis:
     statistics: Statistics  # the band statistics every error and figure is computed from
     detectability: Detectability  # each extension's weakest detectable effect on this campaign
     findings: tuple[Finding, ...] = ()  # causes and properties, in the order found (:mod:`.selection`)
+    # each response hypothesis's gain with its 95 % interval (:func:`.confidence.hypothesis_intervals`)
+    intervals: dict = field(default_factory=dict)
 
     @property
     def confidence(self) -> str | None:
@@ -74,7 +76,7 @@ class InServiceDiagnosis:
                          "bounds": {k: list(v) for k, v in self.bounds.items()},
                          "source": self.start.source, "start": self.start.parameters.as_dict(),
                          "defaults": list(self.start.defaults), "widened": list(self.start.widened)},
-            "hypotheses": [h.to_json() for h in self.hypotheses],
+            "hypotheses": [{**h.to_json(), **self._interval_json(h.name)} for h in self.hypotheses],
             "split": {"training_runs": list(self.training_runs), "heldout_runs": list(self.heldout_runs)},
             "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
                          "max_systematic_left": s.max_systematic_left},
@@ -83,6 +85,11 @@ class InServiceDiagnosis:
             "confidence": self.confidence,
         }
         return copy.deepcopy(out)  # the caller may change it; the result stays as made
+
+    def _interval_json(self, name: str) -> dict:
+        c = self.intervals.get(name)
+        return {"interval_95": None if c is None or c.interval is None else list(c.interval),
+                "heldout_cells": None if c is None else c.cells}
 
     def plot(self, stem: Path) -> list[Path]:
         """Draw the residual PSD before and after the extension (``<stem>_residual_psd.png``)
