@@ -373,14 +373,18 @@ def test_an_extension_that_gains_without_explaining_the_systematic_residual_is_n
 @pytest.mark.slow
 def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_path, capsys):
     """From a user's calibration (here the car the campaign was measured on): the baseline
-    starts there, says so, and the hidden cause is still named."""
+    starts there, says so, and the hidden cause is still named; the file written is the
+    extended model's calibration."""
     root = _campaign(tmp_path / "c", 78, EffectChoice(EFFECTS["cog_offset"], 1.2))
     truth = json.loads((tmp_path / "c.truth.json").read_text())
     cal = tmp_path / "cal.json"
     cal.write_text(json.dumps({"format": "railcal-calibration/1", "model": "car2d", "parameters": truth["parameters"]}))
     out = tmp_path / "diag.json"
     assert main(["diagnose", str(root), "--calibration", str(cal), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out  # one summary line: the cause and the files written
     result = json.loads(out.read_text())
+    assert printed.count("\n") == 1 and printed.startswith(f"cause: cog_offset (confidence {result['confidence']});")
+    assert "diag.json" in printed
     assert {"cause", "evidence", "extension", "gain", "findings", "confidence"} <= set(result)
     cause = next(f for f in result["findings"] if f["role"] == "cause")
     if cause["interval_95"] is None:  # too few held-out (run, speed) cells to resample
@@ -395,12 +399,20 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
         elif h["kind"] != "response":
             assert h["interval_95"] is None
     assert any(h["name"] == "cog_offset" and h["interval_95"] == cause["interval_95"] for h in result["hypotheses"])
+    # the file is the extended model's calibration: validate takes it, the FMU and exudyn refuse what they lack
+    assert result["model"] == "car2d" and result["extras"]["cog_offset"] == pytest.approx(cause["parameters"]["cog_offset"])
+    validated = tmp_path / "val.json"
+    assert main(["validate", str(root), "--calibration", str(out), "--out", str(validated), "--quiet"]) == 0
+    capsys.readouterr()
+    for command in (["export-fmu", "--calibration", str(out), "--out", str(tmp_path / "x.fmu")],
+                    ["crosscheck", "--calibration", str(out), "--out", str(tmp_path / "x.json"), "--no-fmu"]):
+        assert main([*command, "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert "cog_offset" in err and "extras" in err
+        assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "x.json").exists()
     assert result["baseline"]["start"] == truth["parameters"] and str(cal) in result["baseline"]["source"]
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])
-    printed = capsys.readouterr().out  # one summary line: the cause and the files written
-    assert printed.count("\n") == 1 and printed.startswith(f"cause: cog_offset (confidence {result['confidence']});")
-    assert "diag.json" in printed
 
 
 def test_diagnose_refuses_a_missing_campaign_without_writing(tmp_path, capsys):

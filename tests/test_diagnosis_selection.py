@@ -132,3 +132,16 @@ def test_a_bending_takes_the_campaigns_carbody_length_or_the_diagnosis_says_what
     assert on_car(CarExtras(bending_hz=9.0), given).carbody_length == 26.4
     assumed = layout(SimpleNamespace(meta=tiny_meta(sensors=TINY_SENSORS + axles, geometry=geometry), root=tmp_path))
     assert assumed.length == pytest.approx(16.0 / BOGIE_SPACING_SHARE) and assumed.length_assumed
+
+
+def test_a_calibration_files_extras_round_trip_and_bad_ones_are_named():
+    from calibration.models.car2d import extras_from_json, extras_to_json
+
+    ex = CarExtras(cog_offset=0.7, bending_hz=9.0, bending_node=0.5, carbody_length=26.4)
+    data = extras_to_json(ex)
+    assert data["bending_damping"] == ex.bending_damping and "reservoir_ratio" not in data
+    assert extras_from_json(data) == ex and extras_from_json({}) == CarExtras()
+    for bad, word in (({"mass": 1.0}, "unknown extras"), ({"cog_offset": float("nan")}, "finite"),
+                      ({"cog_offset": "0.5"}, "finite"), ([1.0], "must map")):
+        with pytest.raises(ValueError, match=word):
+            extras_from_json(bad)

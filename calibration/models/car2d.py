@@ -77,6 +77,38 @@ class CarExtras:
     elements: tuple[SpringDamper, ...] = ()
 
 
+#: The additions a calibration file carries (``extras``): CarExtras' scalar fields.
+EXTRAS_FIELDS = ("cog_offset", "bending_hz", "bending_damping", "bending_mass_ratio", "bending_node",
+                 "carbody_length", "reservoir_ratio", "reservoir_corner_hz", "node_mass", "track_stiffness",
+                 "track_damping_ratio", "track_mass")
+
+
+def extras_to_json(extras: CarExtras) -> dict:
+    """The additions ``extras`` makes to the seed's car, as a calibration file's ``extras``
+    (the fields that differ from the defaults; a bending's shape fields with it)."""
+    if extras.bodies or extras.elements:
+        raise ValueError("extra bodies and elements have no calibration-file form yet")
+    default = CarExtras()
+    out = {k: getattr(extras, k) for k in EXTRAS_FIELDS if getattr(extras, k) != getattr(default, k)}
+    if extras.bending_hz is not None:
+        out.update({k: getattr(extras, k) for k in ("bending_damping", "bending_mass_ratio", "carbody_length")})
+    return out
+
+
+def extras_from_json(data) -> CarExtras:
+    """A calibration file's ``extras`` (ValueError naming what is wrong)."""
+    if not isinstance(data, dict):
+        raise ValueError(f"'extras' must map names to numbers, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(EXTRAS_FIELDS))
+    if unknown:
+        raise ValueError(f"unknown extras {unknown}; known: {', '.join(EXTRAS_FIELDS)}")
+    for k, v in data.items():
+        if not (v is None and k in ("bending_hz", "bending_node", "track_stiffness")) and \
+                not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
+            raise ValueError(f"extras.{k} must be a finite number, got {v!r}")
+    return CarExtras(**data)
+
+
 def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
               c_contact: float = 0.0, extras: CarExtras | None = None) -> Assembly:
     """Assemble the 2D car from rigid bodies and spring-dampers (plus ``extras``)."""

@@ -40,7 +40,7 @@ import scipy.signal
 from ..data.campaign import Campaign
 from ..data.errors import CampaignError
 from ..identification.fdd import distance_axis
-from ..models.car2d import Output, build_car, state_space, wheelset_positions
+from ..models.car2d import CarExtras, Output, build_car, state_space, wheelset_positions
 from ..models.parameters import CarParameters
 from ..models.simulate import ModalSimulator
 from ..signals.peaks import parabolic_shift
@@ -139,8 +139,12 @@ def _best_offset(meas: dict, sim: dict, max_offset: float) -> float:
     return float(-(lags[k] + parabolic_shift(score, k)) * STEP_M)
 
 
-def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0, max_offset: float = 10.0,
+def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None = None, bogie_dx: float = 0.0,
+             gyro_gain: float = 1.0, min_length: float = 200.0, max_offset: float = 10.0,
              progress=None) -> ValidationResult:
+    """The car ``p`` (with ``extras``: a diagnosis's extended model) over the campaign's
+    track recording; ``bogie_dx`` [m] moves the bogie accelerometers from their declared x
+    and ``gyro_gain`` scales the pitch gyro, as a diagnosis's sensor finding says."""
     meta = campaign.meta
     tracks = [t for t in campaign.tracks() if t.band in BANDS_M]
     if not tracks:
@@ -161,14 +165,15 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0,
     slope = np.gradient(track.level, track.distance)
     xw = wheelset_positions(p)
     sensors = {s.name: s for s in meta.sensors if s.body == "bogie1"}
-    outputs = [Output(s.name, "acceleration", "bogie1", s.position[0]) for s in sensors.values()
+    outputs = [Output(s.name, "acceleration", "bogie1", s.position[0] + bogie_dx) for s in sensors.values()
                if s.quantity == "acceleration" and s.direction == "z"]
     outputs += [Output(s.name, "pitch_rate", "bogie1") for s in sensors.values()
                 if s.quantity == "angular_velocity" and s.direction == "pitch"]
     if not outputs:
         raise CampaignError("no bogie-1 vertical accelerometer or pitch gyro to compare with", path=campaign.root /
                             "campaign.toml", key="sensors")
-    ss = state_space(build_car(p), outputs)
+    ss = state_space(build_car(p, extras=extras), outputs)
+    gains = np.array([gyro_gain if o.kind == "pitch_rate" else 1.0 for o in outputs])
     runs, skipped = [], []
     for run in campaign.iter_runs():
         d = distance_axis(run.distance, run.speed, run.time)
@@ -195,7 +200,7 @@ def validate(campaign: Campaign, p: CarParameters, *, min_length: float = 200.0,
                 for j in range(4):
                     w[:, j] = np.interp(s + offset + xw[j], track.distance, track.level)
                     w[:, 4 + j] = v * np.interp(s + offset + xw[j], track.distance, slope)
-                y = ModalSimulator(ss, dt, x0="static").step_chunk(w)
+                y = ModalSimulator(ss, dt, x0="static").step_chunk(w) * gains
                 return [np.interp(grid, s, y[:, k]) for k in range(len(outputs))]
 
             meas = {}

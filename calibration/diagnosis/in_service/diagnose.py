@@ -144,7 +144,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         campaign=campaign.root, cause=cause, summary=tuple(summary), evidence=ev, hypotheses=tuple(hyps), best=best,
         baseline=base_fit, start=start, bounds=data.bounds, training_runs=tuple(sorted(data.train)),
         heldout_runs=tuple(sorted(data.test)), settings=settings, layout=data.layout, statistics=stats,
-        detectability=detect, findings=sel.findings, intervals=intervals)
+        detectability=detect, findings=sel.findings, intervals=intervals, extended=sel.vehicle_fit)
 
 
 def _values(parameters: dict) -> str:

@@ -7,12 +7,13 @@ import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...models.car2d import extras_to_json
 from .baseline import BaselineStart
 from .detectability import Detectability
 from .evidence import Evidence
 from .hypotheses import Hypothesis
 from .records import Layout, Statistics
-from .response import ResponseFit
+from .response import ResponseFit, SensorModel
 from .selection import Finding
 from .settings import DiagnosisSettings
 
@@ -47,6 +48,19 @@ class InServiceDiagnosis:
     findings: tuple[Finding, ...] = ()  # causes and properties, in the order found (:mod:`.selection`)
     # each response hypothesis's gain with its 95 % interval (:func:`.confidence.hypothesis_intervals`)
     intervals: dict = field(default_factory=dict)
+    extended: ResponseFit | None = None  # the car with every vehicle finding (cause or property) in it
+
+    def model_json(self) -> dict:
+        """The extended model as a calibration file's keys: ``model``, ``parameters``,
+        ``extras`` (:func:`~calibration.models.car2d.extras_to_json`), the bogie sensors'
+        ``sensor_model`` where a finding moved them, and ``not_in_model``: the findings on
+        the track and wheels, which a vehicle model does not carry."""
+        fit = self.extended or self.baseline
+        out = {"model": "car2d", "parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras)}
+        if fit.sensors != SensorModel():
+            out["sensor_model"] = {"bogie_dx": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}
+        out["not_in_model"] = [f.name for f in self.findings if f.hypothesis.kind != "response"]
+        return out
 
     @property
     def confidence(self) -> str | None:
@@ -62,7 +76,8 @@ class InServiceDiagnosis:
         ``hypotheses``, ``split``, ``settings``, ``detectability`` ({extension: parameter,
         unit, detectable_beyond (None: not within its range or not observable), observable,
         why}), ``findings`` (each cause and property with its held-out gain, interval and
-        confidence) and ``confidence`` (:attr:`confidence`)."""
+        confidence), ``confidence`` (:attr:`confidence`) and the extended model as a
+        calibration file's keys (:meth:`model_json`), so that the file is one."""
         best, s = self.best, self.settings
         out = {
             "format": FORMAT, "campaign": str(self.campaign), "cause": self.cause,
@@ -83,6 +98,7 @@ class InServiceDiagnosis:
             "detectability": self.detectability.to_json(),
             "findings": [f.to_json() for f in self.findings],
             "confidence": self.confidence,
+            **self.model_json(),
         }
         return copy.deepcopy(out)  # the caller may change it; the result stays as made
 
