@@ -16,6 +16,7 @@ import numpy as np
 
 from calibration.data.campaign import read_track_file
 from calibration.data.errors import InputError
+from calibration.models.car2d import seed_car_only
 from calibration.models.parameters import CarParameters
 
 from .build import BuiltFMU, build_fmu
@@ -58,10 +59,7 @@ def car2d_fmu_spec(calibration: dict, *, track: Path | None = None, campaign=Non
     vertical accelerometer of ``campaign`` on the car's bodies (when given)."""
     if cutoff_hz is not None:
         raise InputError("--cutoff-hz is for the box model", key="--cutoff-hz")
-    added = sorted((calibration.get("extras") or {}).keys())
-    if added:  # a diagnosis's extended model: the car FMU's C has the seed's bodies only
-        raise InputError(f"the car FMU carries the seed's car only, not the extended model's {', '.join(added)}",
-                         key="extras")
+    seed_car_only(calibration, "the car FMU")  # its C has the seed's bodies only
     p = CarParameters.from_mapping(calibration["parameters"])  # names, finiteness and physical ranges checked here
     sensors = car_sensors(campaign, p) if campaign is not None else ()
     return car2d_spec(p.as_dict(), track=track, sensors=sensors)

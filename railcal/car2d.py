@@ -7,7 +7,7 @@ from pathlib import Path
 
 from calibration.data.errors import InputError
 from calibration.data.outputs import write_result
-from calibration.models.car2d import CarExtras, extras_from_json
+from calibration.models.car2d import CarExtras, extras_from_json, seed_car_only, sensor_model_from_json
 from calibration.models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 
 from .common import campaign_of, names, progress_for, read_identification
@@ -28,15 +28,6 @@ def extras(calibration: dict, path) -> CarExtras:
         return extras_from_json(calibration.get("extras") or {})
     except ValueError as e:
         raise InputError(str(e), path=Path(path), key="extras") from None
-
-
-def rigid_car_only(calibration: dict, path, what: str) -> None:
-    """Exit 2 when the calibration's extended model has additions ``what`` cannot carry yet."""
-    added = sorted((calibration.get("extras") or {}).keys())
-    if added:
-        raise InputError(f"{what} carries the seed's car only, not the extended model's {', '.join(added)}; "
-                         "use the baseline calibration, or validate the extended model with railcal validate",
-                         path=Path(path), key="extras")
 
 
 def identify(campaign, args, png: Path, second: Path) -> str:
@@ -133,13 +124,12 @@ def validate(campaign, calibration: dict, args) -> str:
     from calibration.validation.in_service import validate as validate_runs
 
     p = parameters(calibration, args.calibration)
-    sensors = calibration.get("sensor_model") or {}
-    if not isinstance(sensors, dict) or set(sensors) - {"bogie_dx", "gyro_gain"}:
-        raise InputError("'sensor_model' must map bogie_dx and gyro_gain to numbers", path=Path(args.calibration),
-                         key="sensor_model")
-    result = validate_runs(campaign, p, extras=extras(calibration, args.calibration),
-                           bogie_dx=float(sensors.get("bogie_dx", 0.0)), gyro_gain=float(sensors.get("gyro_gain", 1.0)),
-                           progress=progress_for(args))
+    try:
+        bogie_dx, gyro_gain = sensor_model_from_json(calibration.get("sensor_model"))
+    except ValueError as e:
+        raise InputError(str(e), path=Path(args.calibration), key="sensor_model") from None
+    result = validate_runs(campaign, p, extras=extras(calibration, args.calibration), bogie_dx=bogie_dx,
+                           gyro_gain=gyro_gain, progress=progress_for(args))
     png = result.plot(Path(args.out).with_suffix(".png"))
     out = result.to_json()
     out["plot"] = str(png)
@@ -154,7 +144,7 @@ def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tu
     """The exudyn cross-check over (distance, level) [m]: the report and its summary."""
     from .crosscheck import crosscheck_car
 
-    rigid_car_only(calibration, args.calibration, "the exudyn reference")
+    seed_car_only(calibration, "the exudyn reference", Path(args.calibration))
     report = crosscheck_car(parameters(calibration, args.calibration), distance, level, speed=args.speed,
                             duration=args.duration, with_fmu=not args.no_fmu, plot=png)
     e, t = report["eigen"], report["time"]

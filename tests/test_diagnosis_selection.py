@@ -145,3 +145,13 @@ def test_a_calibration_files_extras_round_trip_and_bad_ones_are_named():
                       ({"cog_offset": "0.5"}, "finite"), ([1.0], "must map")):
         with pytest.raises(ValueError, match=word):
             extras_from_json(bad)
+
+
+def test_a_calibration_files_sensor_model_is_two_finite_numbers():
+    from calibration.models.car2d import sensor_model_from_json
+
+    assert sensor_model_from_json(None) == (0.0, 1.0)
+    assert sensor_model_from_json({"bogie_dx": 0.4, "gyro_gain": 0.97}) == (0.4, 0.97)
+    for bad in ({"dx": 0.4}, {"gyro_gain": "1"}, {"bogie_dx": float("inf")}, [0.4]):
+        with pytest.raises(ValueError, match="sensor_model"):
+            sensor_model_from_json(bad)

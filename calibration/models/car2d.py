@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
+from ..data.errors import InputError
 from .assembly import Assembly, Attachment, Body, ElasticMode, SpringDamper, assemble, beam_bending_shape
 from .parameters import CarParameters
 
@@ -107,6 +108,27 @@ def extras_from_json(data) -> CarExtras:
                 not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
             raise ValueError(f"extras.{k} must be a finite number, got {v!r}")
     return CarExtras(**data)
+
+
+def seed_car_only(calibration, what: str, path=None) -> None:
+    """InputError (exit 2) when ``calibration`` (a calibration file's content) carries an
+    extended model's ``extras``, which ``what`` cannot carry yet."""
+    added = sorted((calibration.get("extras") or {}).keys())
+    if added:
+        raise InputError(f"{what} carries the seed's car only, not the extended model's {', '.join(added)}; "
+                         "use the baseline calibration, or validate the extended model with railcal validate",
+                         path=path, key="extras")
+
+
+def sensor_model_from_json(data) -> tuple[float, float]:
+    """A calibration file's ``sensor_model``: (bogie_dx [m], gyro_gain) (ValueError naming what is wrong)."""
+    data = {} if data is None else data
+    if not isinstance(data, dict) or set(data) - {"bogie_dx", "gyro_gain"}:
+        raise ValueError("'sensor_model' must map bogie_dx and gyro_gain to numbers")
+    for k, v in data.items():
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
+            raise ValueError(f"sensor_model.{k} must be a finite number, got {v!r}")
+    return float(data.get("bogie_dx", 0.0)), float(data.get("gyro_gain", 1.0))
 
 
 def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
