@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .evidence import DiagnosisData
-from .response import ResponseFit, response_nrp
+from .response import ResponseFit, residuals_by_cell
 
 #: bootstrap draws of the held-out cells
 BOOTSTRAP = 2000
@@ -53,11 +53,9 @@ def cell_residuals(data: DiagnosisData, fit: ResponseFit, channel: int, masks: n
     """``fit``'s residual power on ``channel`` in each held-out cell (in key order), over the
     channel's signal bands."""
     m = masks[:, channel]
-    out = []
-    for k in sorted(data.keys(data.test)):
-        R, _ = response_nrp(data.stats, data.layout, {k}, fit.parameters, fit.extras, fit.sensors, by_band=True)
-        out.append(R[m, channel].sum())
-    return np.array(out)
+    keys = sorted(data.keys(data.test))
+    R = residuals_by_cell(data.stats, data.layout, keys, fit.parameters, fit.extras, fit.sensors)
+    return np.array([R[k][m, channel].sum() for k in keys])
 
 
 def response_confidence(data: DiagnosisData, before: ResponseFit, after: ResponseFit, channel: str,

@@ -223,6 +223,14 @@ def response_nrp(stats: Statistics, lay: Layout, keys, p: CarParameters, extras:
     return R.sum(axis=0) / np.maximum(P.sum(axis=0), 1e-300)
 
 
+def residuals_by_cell(stats: Statistics, lay: Layout, keys, p: CarParameters, extras: CarExtras,
+                      sensors: SensorModel) -> dict:
+    """Per-band residual power (n_band, n_response) of each statistics cell in ``keys``,
+    from one evaluation of the model's transfer."""
+    G = transfer(p, extras, sensors, lay, stats.centres)
+    return {k: residual_power(G, stats.S[k], 4, len(lay.responses)) for k in keys}
+
+
 def input_coherence(stats: Statistics, lay: Layout, keys, p, extras, sensors) -> np.ndarray:
     """Multiple coherence of each response's residual with the inputs, per band: near 0 when
     the model explains everything the rail input causes (n_band, n_out)."""
