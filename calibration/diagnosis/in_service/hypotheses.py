@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...models.car2d import CarExtras
+from ...models.car2d import CarExtras, extras_to_json
 from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors, systematic
 from .extensions import Extension
 from .response import ResponseFit, fit_response
@@ -111,12 +111,6 @@ def heldout_losses(names, before, after, best: int, max_loss: float) -> list[str
             if b > 0 and a - b > max_loss * b and a - b > max_loss * removed]
 
 
-def _extras_json(ex: CarExtras) -> dict:
-    d = {k: getattr(ex, k) for k in ("cog_offset", "bending_hz", "bending_damping", "bending_mass_ratio",
-                                     "bending_node", "carbody_length", "reservoir_ratio", "reservoir_corner_hz")}
-    return {k: v for k, v in d.items() if v not in (None, 0.0) or k in ("cog_offset",)}
-
-
 def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, ev: Evidence,
                    score: float, *, added_to: Hypothesis | None = None) -> Hypothesis:
     """Fit extension ``ext`` on the training runs and judge it on held-out data against the
@@ -136,7 +130,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         after = response_errors(data, fit, ev.masks)
         names = data.layout.response_names
         params = fit.values
-        model = {"parameters": fit.parameters.as_dict(), "extras": _extras_json(fit.extras),
+        model = {"parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras),
                  "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}}
         at = [n for n in fit.at_bounds if n in params]
         left, _ = channel_evidence(data, fit, ev.masks)
