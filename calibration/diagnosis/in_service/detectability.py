@@ -214,7 +214,7 @@ class _Responses:
 
 
 def _carbody_words(data: DiagnosisData) -> str:
-    if any(o.body == "carbody" for o in data.layout.responses):
+    if data.layout.carbody_sensed:
         return "its predicted change on every channel of this campaign stays within the data's scatter"
     return ("it changes the bogie channels by less than the data's scatter; carbody floor accelerometers "
             "(above the bogies and at the centre) would see it")
@@ -239,7 +239,7 @@ def _response_limit(name: str, r: _Responses, bar: float) -> Limit:
     elif limit is None:
         why = (f"not detectable within its range {rng}{held}: at {mag.strong:g} {mag.unit} the predicted held-out "
                f"gain less its scatter is {strong:.0%}, under the bar of {bar:.0%}")
-        if name in CARBODY_EFFECTS and not any(o.body == "carbody" for o in r.data.layout.responses):
+        if name in CARBODY_EFFECTS and not r.data.layout.carbody_sensed:
             return Limit(name, mag.parameter, mag.unit, None, True, f"{why}; {_carbody_words(r.data)}", stronger,
                          needs="carbody sensors")
     else:

@@ -135,7 +135,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     summary = _summary(cause, sel, words + notes(left, settings), ev, hyps, settings, detect, intervals) \
         + start.describe()
     lay = data.layout
-    if lay.length_assumed and any(o.body == "carbody" for o in lay.responses):
+    if lay.length_assumed and lay.carbody_sensed:
         summary.append(f"carbody length: campaign.toml's [vehicle] gives none; a bending's shape assumed "
                        f"{lay.length:.1f} m (the bogie spacing over {BOGIE_SPACING_SHARE})")
     stages.update(stages.total - stages.n)  # fewer hypotheses than fit_leading: the rest skipped

@@ -95,6 +95,11 @@ class Layout:
     length_assumed: bool = False  # campaign.toml gives none: BOGIE_SPACING_SHARE assumed
 
     @property
+    def carbody_sensed(self) -> bool:
+        """Does a carbody (floor) sensor take part?"""
+        return any(o.body == "carbody" for o in self.responses)
+
+    @property
     def input_names(self) -> tuple[str, ...]:
         return ("rail_acc_1", "rail_acc_2", "rail_acc_3", "rail_acc_4")
 
