@@ -182,6 +182,22 @@ def test_validate_command_with_the_truth_leaves_little_and_reports_per_channel(s
     capsys.readouterr()
 
 
+def test_validate_takes_equipment_hung_under_the_carbody_and_names_a_malformed_one(synthetic_campaign, tmp_path,
+                                                                                 capsys):
+    """The diagnosis's extended model can carry equipment on its mounts (``hung_bodies``)."""
+    root, truth = synthetic_campaign
+    hung = {"name": "powerpack", "mass": 2500.0, "x": -2.3, "mount_stiffness": 8.0e6, "mount_damping": 3.4e4}
+    cal = tmp_path / "with_equipment.json"
+    cal.write_text(json.dumps({"parameters": truth["parameters"], "extras": {"hung_bodies": [hung]}}))
+    assert main(["validate", str(root), "--calibration", str(cal), "--quiet", "--out", str(tmp_path / "v.json")]) == 0
+    bad = tmp_path / "bad_equipment.json"
+    bad.write_text(json.dumps({"parameters": truth["parameters"], "extras": {"hung_bodies": [{**hung, "mass": -1}]}}))
+    assert main(["validate", str(root), "--calibration", str(bad), "--quiet", "--out", str(tmp_path / "w.json")]) == 2
+    err = capsys.readouterr().err
+    assert "bad_equipment.json" in err and "hung_bodies[0].mass" in err
+    assert not (tmp_path / "w.json").exists()
+
+
 @pytest.mark.parametrize("content, message", [
     ('{"parameters": {"m_v": -1}}', "missing parameter"),
     ('{"parameters": null}', "must map names to values"),

@@ -84,15 +84,42 @@ EXTRAS_FIELDS = ("cog_offset", "bending_hz", "bending_damping", "bending_mass_ra
                  "track_damping_ratio", "track_mass")
 
 
+#: A calibration file's form of extra bodies: each a point mass hung under the carbody at its
+#: x on one spring-damper (equipment on its mounts).
+HUNG_KEYS = ("name", "mass", "x", "mount_stiffness", "mount_damping")
+
+
+def hung_body(name: str, mass: float, x: float, stiffness: float, damping: float) -> tuple[Body, SpringDamper]:
+    """A point mass [kg] hung under the carbody at ``x`` [m] on a spring [N/m] and damper [N s/m]."""
+    return Body(name, mass, x), SpringDamper(f"{name}_mount", Attachment("carbody", x), Attachment(name, x),
+                                             stiffness, damping)
+
+
+def _hung_to_json(extras: CarExtras) -> list[dict]:
+    out = []
+    for body in extras.bodies:
+        made = [e for e in extras.elements if e.bottom.body == body.name]
+        if body.inertia is not None or len(made) != 1 or made[0] != hung_body(body.name, body.mass, body.x,
+                                                                           made[0].stiffness, made[0].damping)[1]:
+            raise ValueError(f"extra body {body.name!r} is not a point mass hung under the carbody on one mount: "
+                             "it has no calibration-file form")
+        out.append(dict(zip(HUNG_KEYS, (body.name, float(body.mass), float(body.x), float(made[0].stiffness),
+                                      float(made[0].damping)))))
+    if len(extras.elements) != len(out):
+        raise ValueError("extra spring-dampers other than equipment mounts have no calibration-file form")
+    return out
+
+
 def extras_to_json(extras: CarExtras) -> dict:
     """The additions ``extras`` makes to the seed's car, as a calibration file's ``extras``
-    (the fields that differ from the defaults; a bending's shape fields with it)."""
-    if extras.bodies or extras.elements:
-        raise ValueError("extra bodies and elements have no calibration-file form yet")
+    (the fields that differ from the defaults; a bending's shape fields with it; bodies hung
+    under the carbody as ``hung_bodies``)."""
     default = CarExtras()
     out = {k: getattr(extras, k) for k in EXTRAS_FIELDS if getattr(extras, k) != getattr(default, k)}
     if extras.bending_hz is not None:
         out.update({k: getattr(extras, k) for k in ("bending_damping", "bending_mass_ratio", "carbody_length")})
+    if extras.bodies or extras.elements:
+        out["hung_bodies"] = _hung_to_json(extras)
     return out
 
 
@@ -100,14 +127,33 @@ def extras_from_json(data) -> CarExtras:
     """A calibration file's ``extras`` (ValueError naming what is wrong)."""
     if not isinstance(data, dict):
         raise ValueError(f"'extras' must map names to numbers, got {type(data).__name__}")
+    data = dict(data)
+    hung = data.pop("hung_bodies", [])
     unknown = sorted(set(data) - set(EXTRAS_FIELDS))
     if unknown:
-        raise ValueError(f"unknown extras {unknown}; known: {', '.join(EXTRAS_FIELDS)}")
+        raise ValueError(f"unknown extras {unknown}; known: {', '.join(EXTRAS_FIELDS + ('hung_bodies',))}")
     for k, v in data.items():
         if not (v is None and k in ("bending_hz", "bending_node", "track_stiffness")) and \
                 not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
             raise ValueError(f"extras.{k} must be a finite number, got {v!r}")
-    return CarExtras(**data)
+    if not isinstance(hung, list):
+        raise ValueError("extras.hung_bodies must be a list of bodies")
+    bodies, elements = [], []
+    for i, h in enumerate(hung):
+        if not isinstance(h, dict) or set(h) != set(HUNG_KEYS):
+            raise ValueError(f"extras.hung_bodies[{i}] must give exactly {', '.join(HUNG_KEYS)}")
+        if not isinstance(h["name"], str) or h["name"] in ("carbody",) or h["name"].startswith(("bogie", "wheelset")):
+            raise ValueError(f"extras.hung_bodies[{i}].name must be a new body's name, got {h['name']!r}")
+        for k in HUNG_KEYS[1:]:
+            v = h[k]
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)) or \
+                    (k != "x" and not v > 0 and not (k == "mount_damping" and v == 0)):
+                raise ValueError(f"extras.hung_bodies[{i}].{k} must be a finite number (positive, but x), got {v!r}")
+        b, e = hung_body(h["name"], float(h["mass"]), float(h["x"]), float(h["mount_stiffness"]),
+                         float(h["mount_damping"]))
+        bodies.append(b)
+        elements.append(e)
+    return CarExtras(**data, bodies=tuple(bodies), elements=tuple(elements))
 
 
 def seed_car_only(calibration, what: str, path=None) -> None:

@@ -54,7 +54,7 @@ def cell_residuals(data: DiagnosisData, fit: ResponseFit, channel: int, masks: n
     channel's signal bands."""
     m = masks[:, channel]
     keys = sorted(data.keys(data.test))
-    R = residuals_by_cell(data.stats, data.layout, keys, fit.parameters, fit.extras, fit.sensors)
+    R = residuals_by_cell(data.stats, data.layout, keys, fit)
     return np.array([R[k][m, channel].sum() for k in keys])
 
 

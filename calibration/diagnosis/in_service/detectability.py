@@ -85,7 +85,10 @@ RESPONSE_MAGNITUDES = {
     "airspring_reservoir": Magnitude("reservoir_ratio", "-", 0.05, 5.0,
                                      {"reservoir_corner_hz": _EXTRAS.reservoir_corner_hz}),
 }
-_missing = [n for n, e in EXTENSIONS.items() if e.kind == "response" and n not in RESPONSE_MAGNITUDES]
+#: extensions for what every vehicle has (:attr:`.extensions.Extension.always_normal`) name no
+#: cause, so "no effect above these sizes" has no size of theirs to give
+_missing = [n for n, e in EXTENSIONS.items()
+            if e.kind == "response" and not e.always_normal and n not in RESPONSE_MAGNITUDES]
 if _missing:
     raise ImportError(f"detectability.RESPONSE_MAGNITUDES lacks the response extension(s) {', '.join(_missing)}")
 
@@ -170,9 +173,9 @@ class _Responses:
         S_tr, _ = stats.total(lambda k: k in data.keys(data.train))
         self.S_te, _ = stats.total(lambda k: k in test)
         self.S_all, _ = stats.total()
-        self.R0, self.P = response_nrp(stats, lay, test, base.parameters, base.extras, base.sensors, by_band=True)
-        self.R_all, _ = response_nrp(stats, lay, all_keys, base.parameters, base.extras, base.sensors, by_band=True)
-        self.eiv = input_noise_power(stats, lay, all_keys, base.parameters, base.extras, base.sensors)
+        self.R0, self.P = response_nrp(stats, lay, test, base, by_band=True)
+        self.R_all, _ = response_nrp(stats, lay, all_keys, base, by_band=True)
+        self.eiv = input_noise_power(stats, lay, all_keys, base)
         self.nu = np.maximum(self.bw * stats.seconds_of(test), 1.0)[:, None]  # held-out averages per band
         self.G0 = self._G(base.extras, base.sensors)
         norm = 1.0 / np.maximum(channel_power(S_tr, 4, n_out).sum(axis=0), 1e-300)
@@ -312,6 +315,8 @@ def detectability(data: DiagnosisData, base: ResponseFit) -> Detectability:
     r = None
     limits = []
     for name, ext in EXTENSIONS.items():
+        if ext.always_normal:
+            continue
         bar = s.min_gain + s.penalty * ext.n_params
         if ext.kind == "response":
             r = r or _Responses(data, base)

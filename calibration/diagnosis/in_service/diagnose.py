@@ -148,7 +148,11 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
 
 
 def _values(parameters: dict) -> str:
-    return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in parameters.items())
+    def one(v):
+        if isinstance(v, dict):
+            return "(" + ", ".join(f"{k} {one(x)}" for k, x in v.items()) + ")"
+        return f"{v:.4g}" if isinstance(v, float) else f"{v}"
+    return ", ".join(f"{k} = {one(v)}" for k, v in parameters.items())
 
 
 def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, hyps: list[Hypothesis],

@@ -16,7 +16,7 @@ import scipy.ndimage
 
 from ...models.parameters import CarParameters
 from .records import Layout, Record, Statistics
-from .response import ResponseFit, input_coherence, input_noise_power, residual_cross_spectrum, response_nrp, transfer
+from .response import ResponseFit, grouped_residual_cross_spectrum, input_coherence, input_noise_power, response_nrp
 from .settings import DiagnosisSettings
 from .track import fit_track, speed_folds, track_error
 from .wheels import line_spectrum
@@ -101,7 +101,7 @@ def _floor(x: np.ndarray, width: int = 41) -> np.ndarray:
 
 def response_errors(data: DiagnosisData, fit: ResponseFit, masks: np.ndarray) -> np.ndarray:
     """Held-out NRP of ``fit`` per response channel over its signal bands ``masks``."""
-    R, P = response_nrp(data.stats, data.layout, data.keys(data.test), fit.parameters, fit.extras, fit.sensors,
+    R, P = response_nrp(data.stats, data.layout, data.keys(data.test), fit,
                         by_band=True)
     return np.array([R[masks[:, c], c].sum() / max(P[masks[:, c], c].sum(), 1e-300) for c in range(R.shape[1])])
 
@@ -117,7 +117,7 @@ def _speed_scaling(data: DiagnosisData, fit: ResponseFit, c: int, f0: float) -> 
     vs, ratios, weights = [], [], []
     for vb in bins:
         keys = {k for k in stats.S if k[1] == vb}
-        R, P = response_nrp(stats, data.layout, keys, fit.parameters, fit.extras, fit.sensors, by_band=True)
+        R, P = response_nrp(stats, data.layout, keys, fit, by_band=True)
         bw = np.diff(stats.edges)
         r = R[:, c] / bw
         ratios.append(r / np.maximum(_floor(r), 1e-300))
@@ -150,17 +150,15 @@ def channel_evidence(data: DiagnosisData, fit: ResponseFit, masks: np.ndarray | 
     bw = np.diff(stats.edges)
     f = stats.centres
     all_keys = set(stats.S)
-    R, P = response_nrp(stats, lay, all_keys, fit.parameters, fit.extras, fit.sensors, by_band=True)
-    _, Ptest = response_nrp(stats, lay, data.keys(data.test), fit.parameters, fit.extras, fit.sensors, by_band=True)
-    eiv = input_noise_power(stats, lay, all_keys, fit.parameters, fit.extras, fit.sensors)
+    R, P = response_nrp(stats, lay, all_keys, fit, by_band=True)
+    _, Ptest = response_nrp(stats, lay, data.keys(data.test), fit, by_band=True)
+    eiv = input_noise_power(stats, lay, all_keys, fit)
     clean = eiv < s.input_noise_share * R  # bands where the rail input's own noise does not dominate
     if masks is None:
         masks = signal_bands(Ptest, bw, s.signal_factor) & clean
-    coh = input_coherence(stats, lay, all_keys, fit.parameters, fit.extras, fit.sensors)
+    coh = input_coherence(stats, lay, all_keys, fit)
     nrp_test = response_errors(data, fit, masks)
-    S_all, _ = stats.total()
-    G = transfer(fit.parameters, fit.extras, fit.sensors, lay, f)
-    Rx = residual_cross_spectrum(G, S_all, 4, len(lay.responses))
+    Rx = grouped_residual_cross_spectrum(stats, lay, all_keys, fit)
     pairs = {}  # residual phase between the ends of the car: bogie-end carbody sensors (front, rear)
     ends = [c for c, o in enumerate(lay.responses) if o.body == "carbody" and o.kind == "acceleration"]
     if len(ends) >= 2:
@@ -240,6 +238,8 @@ def scores(ev: Evidence, lay: Layout, s: DiagnosisSettings) -> dict[str, float]:
     sc = {
         "sensor_offset": max([coh[n] for n in bogie] + [0.0]),
         "carbody_bending": fixed_mid / s.peak_alarm,
+        "mounted_equipment": 0.5 * fixed_mid / s.peak_alarm + max([coh[n] for n in carbody] + [0.0]),
+        "journey_load": max([coh[n] for n in carbody] + [0.0]),
         "cog_offset": max([ch[n]["low_band_coherence"] for n in carbody] + [0.0]),
         "airspring_reservoir": max([coh[n] for n in carbody] + [0.0]) + 0.5 * bool(at_bounds & {"k_s", "c_s"}),
         "wheel_out_of_round": (w["over_floor"] / s.line_alarm) * (w["axle_asymmetry"] >= s.asymmetry),
@@ -282,9 +282,9 @@ def alarms(ev: Evidence, s: DiagnosisSettings) -> list[str]:
     driven by these inputs can predict; :func:`notes` reports it."""
     out = []
     for name, c in ev.channels.items():
-        if c["input_coherence"] >= s.coherence_alarm:
+        if _coherent(c, s) and not _within_accuracy(c, s):
             out.append(f"{name}: residual coherent with the rail input ({c['input_coherence']:.2f}), "
-                       "a systematic model error")
+                       f"a systematic model error ({_systematic_words(c)})")
         for p in c["peaks"]:
             if _peak_counts(p, s) and p.get("input_coherence", 1.0) >= s.coherence_alarm:
                 out.append(_peak_words(name, p))
@@ -295,10 +295,27 @@ def alarms(ev: Evidence, s: DiagnosisSettings) -> list[str]:
     return out
 
 
+def _coherent(c: dict, s: DiagnosisSettings) -> bool:
+    return c["input_coherence"] >= s.coherence_alarm
+
+
+def _within_accuracy(c: dict, s: DiagnosisSettings) -> bool:
+    return c["heldout_nrp"] * c["input_coherence"] < s.systematic_floor
+
+
+def _systematic_words(c: dict) -> str:
+    share = c["heldout_nrp"] * c["input_coherence"]
+    return f"{share:.1%} of its held-out power, an rms error of {np.sqrt(share):.0%}"
+
+
 def notes(ev: Evidence, s: DiagnosisSettings) -> list[str]:
-    """Residual peaks that are not systematic (:func:`alarms`): strong, but not coherent
-    with the rail input."""
-    return [f"{_peak_words(name, p)}; not coherent with the rail input ({p['input_coherence']:.2f}): response to "
-            "an excitation the sensors do not measure, not counted as a model error"
-            for name, c in ev.channels.items() for p in c["peaks"]
-            if _peak_counts(p, s) and p.get("input_coherence", 1.0) < s.coherence_alarm]
+    """What is in the residuals but not systematic (:func:`alarms`): coherent residuals
+    within a model's accuracy, and strong peaks not coherent with the rail input."""
+    small = [f"{name}: residual coherent with the rail input ({c['input_coherence']:.2f}) but within a model's "
+             f"accuracy ({_systematic_words(c)}; a model error from {s.systematic_floor:.0%})"
+             for name, c in ev.channels.items() if _coherent(c, s) and _within_accuracy(c, s)]
+    return small + [
+        f"{_peak_words(name, p)}; not coherent with the rail input ({p['input_coherence']:.2f}): response to "
+        "an excitation the sensors do not measure, not counted as a model error"
+        for name, c in ev.channels.items() for p in c["peaks"]
+        if _peak_counts(p, s) and p.get("input_coherence", 1.0) < s.coherence_alarm]

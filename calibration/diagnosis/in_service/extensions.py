@@ -12,7 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass, fields, replace
 from typing import Callable
 
-from ...models.car2d import CarExtras
+import numpy as np
+
+from ...models.car2d import CarExtras, hung_body
 from .response import ParamRange, SensorModel
 
 KINDS = ("response", "wheel", "track")
@@ -55,16 +57,23 @@ class Extension:
     # (parameter, bound): fitted within +-bound, it describes an installation's tolerance
     # (a sensor placed to within a few centimetres, a gyro's scale within its data sheet's)
     normal_within: tuple[str, float] | None = None
+    # what it adds is part of a normal vehicle's design or service at any size (equipment on
+    # its mounts, a load that changes between journeys)
+    always_normal: bool = False
+    # every run carries a load of its own (:func:`.response.loaded`), fitted with the rest
+    per_run: bool = False
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"Extension {self.name!r}: kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
-        if self.kind == "response" and (not self.params or self.make is None):
-            raise ValueError(f"Extension {self.name!r}: a response extension needs params and make")
+        if self.kind == "response" and (not (self.params or self.per_run) or self.make is None):
+            raise ValueError(f"Extension {self.name!r}: a response extension needs params (or per_run) and make")
 
     def is_property(self, parameters: dict) -> bool:
         """Do these fitted parameters describe a property of a normal vehicle or track
         (:attr:`normal_above`) rather than the fault the extension is named after?"""
+        if self.always_normal:
+            return True
         if self.normal_within is not None:
             name, bound = self.normal_within
             if parameters.get(name) is not None and abs(parameters[name]) < bound:
@@ -76,7 +85,7 @@ class Extension:
 
     def normal_words(self) -> str:
         """When a fitted size is a property, in words."""
-        out = []
+        out = ["part of a normal vehicle's design"] if self.always_normal else []
         if self.normal_above is not None:
             out.append(f"{self.normal_above[0]} above {self.normal_above[1]:.4g}, the top of the catalogue's fault "
                        "range")
@@ -88,8 +97,9 @@ class Extension:
     @property
     def n_params(self) -> int:
         """Parameters the extension fits (a wheel polygon: wavelength, amplitude, wheelset;
-        a track: resonance and damping)."""
-        return {"wheel": 3, "track": 2}.get(self.kind, len(self.params))
+        a track: resonance and damping; loads per run count as one, their spread: a held-out
+        run is judged at loads fitted on its other speed bins, so they buy nothing there)."""
+        return {"wheel": 3, "track": 2}.get(self.kind, len(self.params) + self.per_run)
 
 
 EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
@@ -112,12 +122,32 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
               "air spring reservoir branch: series stiffness ratio to k_s and orifice corner frequency",
               (ParamRange("reservoir_ratio", 0.05, 5.0), ParamRange("reservoir_corner_hz", 0.3, 10.0)),
               lambda v: (CarExtras(**v), SensorModel())),
+    Extension("mounted_equipment", "response",
+              "equipment hung resiliently under the carbody (a powerpack, a tank): mass, position, mount frequency "
+              "and damping",
+              (ParamRange("equipment_mass", 100.0, 5000.0), ParamRange("equipment_x", -13.5, 13.5, log=False),
+               ParamRange("mount_hz", 3.0, 25.0), ParamRange("mount_damping", 0.02, 0.3)),
+              lambda v: (mounted(v["equipment_mass"], v["equipment_x"], v["mount_hz"], v["mount_damping"]),
+                         SensorModel()),
+              always_normal=True),
+    Extension("journey_load", "response",
+              "the load (passengers, luggage, tanks' fill) changing between journeys: the carbody's mass, "
+              "inertia and bending mass, and the levelled air springs' stiffness, per journey",
+              (), lambda v: (CarExtras(), SensorModel()), always_normal=True, per_run=True),
     Extension("wheel_out_of_round", "wheel",
               "polygonal wheel on one wheelset of the leading bogie: wavelength, radius amplitude, wheelset"),
     Extension("track_flexibility", "track",
               "wheelsets on a flexible track: track resonance frequency and damping ratio",
               normal_above=("track_stiffness_n_per_m", SOFT_TRACK_N_PER_M)),
 )}
+
+
+def mounted(mass: float, x: float, mount_hz: float, damping: float) -> CarExtras:
+    """A body of ``mass`` [kg] on a spring-damper under the carbody at ``x`` [m], its mount
+    frequency [Hz] and damping ratio on a fixed carbody."""
+    k = mass * (2 * np.pi * mount_hz) ** 2
+    body, mount = hung_body("equipment", mass, x, k, 2 * damping * np.sqrt(k * mass))
+    return CarExtras(bodies=(body,), elements=(mount,))
 
 
 def combined(first: Extension, then: Extension) -> Extension:
@@ -136,4 +166,4 @@ def combined(first: Extension, then: Extension) -> Extension:
         return replace(ex_a, **changed), se_b if se_b != SensorModel() else se_a
 
     return Extension(f"{first.name}+{then.name}", "response", f"{first.description}; {then.description}",
-                     first.params + then.params, make)
+                     first.params + then.params, make, per_run=first.per_run or then.per_run)

@@ -39,6 +39,8 @@ class Hypothesis:
     heldout_error: dict  # channel -> {"before", "after", "reduction" (None: nothing to reduce)}
     residual: dict | None  # response kind: channel -> systematic residual before and after
     systematic_left: float | None  # response kind: share of the best channel's systematic residual left
+    # response kind: what is left systematic on the best channel, held-out error x input coherence
+    systematic_after: float | None
     best_channel: str
     gain: float  # reduction of the held-out error on ``best_channel``
     worst_change: float  # the smallest (most negative) reduction over the channels
@@ -61,7 +63,8 @@ class Hypothesis:
         return {"name": e.name, "kind": e.kind, "description": e.description, "parameters": self.parameters,
                 "parameters_at_bounds": list(self.parameters_at_bounds), "n_params": e.n_params,
                 "heldout_error": self.heldout_error, "residual": self.residual,
-                "systematic_left": self.systematic_left, "best_channel": self.best_channel, "gain": self.gain,
+                "systematic_left": self.systematic_left, "systematic_after": self.systematic_after,
+                "best_channel": self.best_channel, "gain": self.gain,
                 "worst_change": self.worst_change, "losses": list(self.losses),
                 "penalised_gain": self.penalised_gain, "evidence_score": self.evidence_score}
 
@@ -78,8 +81,12 @@ class Hypothesis:
 
     def leaves_systematic(self, s: DiagnosisSettings) -> bool:
         """Does this response extension leave more of the systematic residual on its best
-        channel than ``max_systematic_left``, i.e. not explain it? (False for other kinds.)"""
-        return self.systematic_left is not None and self.systematic_left > s.max_systematic_left
+        channel than ``max_systematic_left``, i.e. not explain it? Not when what it leaves
+        is within a model's accuracy (held-out error x input coherence under
+        ``systematic_floor``). (False for other kinds.)"""
+        if self.systematic_left is None or self.systematic_left <= s.max_systematic_left:
+            return False
+        return self.systematic_after is None or self.systematic_after >= s.systematic_floor
 
 
 def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -125,7 +132,8 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         prev = base_fit if added_to is None else added_to.fit
         fit = fit_response(stats, data.layout, data.keys(data.train), prev.parameters, data.bounds,
                            ext_params=ext.params, make=ext.make, starts=s.starts,
-                           known=None if added_to is None else prev.values)
+                           known=None if added_to is None else prev.values, per_run=ext.per_run,
+                           heldout_keys=data.keys(data.test))
         before = response_errors(data, prev, ev.masks)
         after = response_errors(data, fit, ev.masks)
         names = data.layout.response_names
@@ -171,15 +179,16 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
     seen = ~np.isnan(red)
     best = int(np.nanargmax(red)) if seen.any() else 0
     gain = float(red[best]) if seen.any() else 0.0
-    left = None
+    left = left_after = None
     if residual is not None and seen.any():  # the systematic residual left on the best channel
         r = residual[names[best]]
         left = systematic_left(gain, r["after"], r["before"])
+        left_after = float(after[best] * r["after"]["input_coherence"])
     return Hypothesis(
         extension=ext, evidence_score=score, parameters=params, parameters_at_bounds=tuple(at), model=model,
         heldout_error={n: {"before": float(b), "after": float(a), "reduction": float(r) if ok else None}
                        for n, b, a, r, ok in zip(names, before, after, red, seen)},
-        residual=residual, systematic_left=left, best_channel=names[best], gain=gain,
+        residual=residual, systematic_left=left, systematic_after=left_after, best_channel=names[best], gain=gain,
         worst_change=float(np.nanmin(red)) if seen.any() else 0.0,
         losses=tuple(heldout_losses(names, before, after, best, s.max_loss)),
         penalised_gain=gain - s.penalty * n_params, fit=fit, heldout_line_spectrum=spectrum)

@@ -76,10 +76,10 @@ def _residual_psd(d: InServiceDiagnosis, path: Path) -> Path:
     keys = {k for k in stats.S if k[0] in d.heldout_runs}
     f, bw = stats.centres, np.diff(stats.edges)
     secs = stats.seconds_of(keys)
-    R0, P = response_nrp(stats, lay, keys, base.parameters, base.extras, base.sensors, by_band=True)
+    R0, P = response_nrp(stats, lay, keys, base, by_band=True)
     R1 = None
     if best is not None:
-        R1, _ = response_nrp(stats, lay, keys, best.fit.parameters, best.fit.extras, best.fit.sensors, by_band=True)
+        R1, _ = response_nrp(stats, lay, keys, best.fit, by_band=True)
     n = len(lay.responses)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.2 * n), sharex=True, squeeze=False)
     for c, ax in enumerate(axes[:, 0]):
@@ -111,7 +111,7 @@ def _speed_map(d: InServiceDiagnosis, path: Path) -> Path:
         rows = []
         for vb in bins:
             keys = {k for k in stats.S if k[1] == vb}
-            R, _ = response_nrp(stats, d.layout, keys, base.parameters, base.extras, base.sensors, by_band=True)
+            R, _ = response_nrp(stats, d.layout, keys, base, by_band=True)
             rows.append(R[:, c] / bw / stats.seconds_of(keys))
         label = f"{name}: baseline residual PSD"
     fig, ax = plt.subplots(figsize=(9, 4.5))

@@ -14,8 +14,7 @@ the square roots of the per-band residual powers, each channel normalised by its
 from __future__ import annotations
 
 from collections.abc import Mapping
-
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.ndimage
@@ -28,6 +27,10 @@ from .records import Layout, Statistics
 #: baseline parameters the response fit adjusts (geometry is known; m_w does not enter a
 #: car whose wheelsets follow the rail)
 FIT_NAMES = ("m_v", "J_v", "m_b", "J_b", "k_p", "c_p", "k_s", "c_s")
+#: A journey's load against the mean, as a fraction of the carbody's mass: the seed's Table 5
+#: payload ranges (passengers, luggage, fuel, water, waste) span about +-8 % of an intercity
+#: car's mass; a crush-loaded commuter car reaches +-20 %.
+LOAD_RANGE = 0.25
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,22 @@ def model_outputs(lay: Layout, sensors: SensorModel) -> tuple[list[Output], np.n
 def on_car(extras: CarExtras, lay: Layout) -> CarExtras:
     """``extras`` on the campaign's carbody (its length shapes a bending)."""
     return extras if extras.carbody_length == lay.length else replace(extras, carbody_length=lay.length)
+
+
+def loaded(p: CarParameters, extras: CarExtras, load: float) -> tuple[CarParameters, CarExtras]:
+    """The car carrying ``load`` x its carbody's mass more (a negative load: less), spread
+    like the carbody's own mass: m_v, J_v and a bending's modal mass grow by (1 + load), so
+    the bending's frequency falls by its square root; the levelling valves raise the air
+    springs' pressure with the load they carry, and their stiffness with it (k_s x (1 +
+    load): the gauge pressure of an intercity air spring is six times the atmosphere's, so
+    this overstates the rise by a seventh of itself)."""
+    if load == 0.0:
+        return p, extras
+    s = 1.0 + load
+    p = p.replace(m_v=p.m_v * s, J_v=p.J_v * s, k_s=p.k_s * s)
+    if extras.bending_hz is not None:
+        extras = replace(extras, bending_hz=extras.bending_hz / np.sqrt(s))
+    return p, extras
 
 
 def transfer(p: CarParameters, extras: CarExtras, sensors: SensorModel, lay: Layout,
@@ -99,6 +118,27 @@ class ResponseFit:
     nrp_train: np.ndarray  # per response channel
     at_bounds: tuple  # names of parameters within 1 % of a bound (fraction of the log range)
     evaluations: int
+    # statistics cell -> the load it was measured at (:func:`loaded`; absent: 0), when the
+    # fit has a load per journey
+    loads: Mapping = field(default_factory=dict)
+
+    def groups(self, keys) -> dict[float, list]:
+        """``keys`` by the load their cells were measured at."""
+        out: dict[float, list] = {}
+        for k in keys:
+            out.setdefault(float(self.loads.get(k, 0.0)), []).append(k)
+        return out
+
+    def transfer(self, lay: Layout, f: np.ndarray, load: float = 0.0) -> np.ndarray:
+        """The fitted model's transfer (:func:`transfer`) at ``load``."""
+        p, extras = loaded(self.parameters, self.extras, load)
+        return transfer(p, extras, self.sensors, lay, f)
+
+    def per_group(self, stats: Statistics, lay: Layout, keys):
+        """(transfer, band sums, cells) for each load among ``keys``."""
+        for load, ks in sorted(self.groups(keys).items()):
+            S, _ = stats.total(lambda k, ks=set(ks): k in ks)
+            yield self.transfer(lay, stats.centres, load), S, ks
 
 
 @dataclass(frozen=True)
@@ -118,36 +158,56 @@ class ParamRange:
             raise ValueError(f"ParamRange {self.name!r}: a log range needs low > 0, got {self.low}")
 
 
+def _load_name(run: str) -> str:
+    return f"load:{run}"
+
+
 class _Problem:
     """Least squares on the square roots of per-band residual powers, each channel
-    normalised by its training power; parameters in log space (or linear) within bounds."""
+    normalised by its training power; parameters in log space (or linear) within bounds.
+    ``per_run``: each training run but the first carries a load (:func:`loaded`) of its own,
+    the first the fit's reference."""
 
     def __init__(self, stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict,
-                 ext_params: tuple, make):
+                 ext_params: tuple, make, per_run: bool = False):
         self.lay, self.base, self.bounds = lay, base, dict(bounds)
         self.S, _ = stats.total(lambda k: k in train_keys)
         self.f = stats.centres
         self.n_out = len(lay.responses)
         power = channel_power(self.S, 4, self.n_out)
         self.norm = 1.0 / np.maximum(power.sum(axis=0), 1e-300)
-        self.ranges = [ParamRange(n, lo, hi) for n, (lo, hi) in self.bounds.items()] + list(ext_params)
+        runs = sorted({k[0] for k in train_keys})
+        self.runs = runs if per_run else []
+        self.S_run = {r: stats.total(lambda k, r=r: k in train_keys and k[0] == r)[0] for r in self.runs}
+        loads = [ParamRange(_load_name(r), -LOAD_RANGE, LOAD_RANGE, log=False) for r in self.runs[1:]]
+        self.ranges = [ParamRange(n, lo, hi) for n, (lo, hi) in self.bounds.items()] + list(ext_params) + loads
         self.lo = np.array([np.log(r.low) if r.log else r.low for r in self.ranges])
         self.hi = np.array([np.log(r.high) if r.log else r.high for r in self.ranges])
         self.make = make or (lambda v: (CarExtras(), SensorModel()))
         self.nb = len(self.bounds)
+        self.n_ext = len(ext_params)
         self.count = 0
 
     def unpack(self, x):
         vals = {r.name: float(np.exp(xi) if r.log else xi) for r, xi in zip(self.ranges, x)}
         p = self.base.replace(**{k: vals[k] for k in self.bounds})
-        extras, sensors = self.make({r.name: vals[r.name] for r in self.ranges[self.nb:]})
+        extras, sensors = self.make({r.name: vals[r.name] for r in self.ranges[self.nb:self.nb + self.n_ext]})
         return p, on_car(extras, self.lay), sensors, vals
+
+    def run_loads(self, vals) -> dict:
+        return {r: vals.get(_load_name(r), 0.0) for r in self.runs}
+
+    def residual_power(self, x) -> np.ndarray:
+        """Training residual power per band and channel, (n_band, n_out)."""
+        p, extras, sensors, vals = self.unpack(x)
+        if not self.runs:
+            return residual_power(transfer(p, extras, sensors, self.lay, self.f), self.S, 4, self.n_out)
+        return sum(residual_power(transfer(*loaded(p, extras, load), sensors, self.lay, self.f), self.S_run[r], 4,
+                                  self.n_out) for r, load in self.run_loads(vals).items())
 
     def resid(self, x):
         self.count += 1
-        p, extras, sensors, _ = self.unpack(x)
-        G = transfer(p, extras, sensors, self.lay, self.f)
-        return np.sqrt(residual_power(G, self.S, 4, self.n_out) * self.norm[None, :]).ravel()
+        return np.sqrt(self.residual_power(x) * self.norm[None, :]).ravel()
 
     def x_of(self, values):
         return np.array([np.clip(np.log(values[r.name]) if r.log else values[r.name], self.lo[i], self.hi[i])
@@ -171,23 +231,54 @@ class _Problem:
         return x, float(sol.cost)
 
 
+def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys) -> dict:
+    """Held-out runs' loads, each half of a run's speed bins predicted at the load fitted
+    on the other half (so that no cell is judged at a load fitted to it); a run with one
+    speed bin is judged at the mean load, 0."""
+    by_run: dict = {}
+    for k in sorted(keys):
+        by_run.setdefault(k[0], []).append(k)
+    n_out = len(lay.responses)
+    out = {}
+    for ks in by_run.values():
+        if len(ks) < 2:
+            out.update({k: 0.0 for k in ks})
+            continue
+        halves = (ks[0::2], ks[1::2])
+        for fit_on, judge in (halves, halves[::-1]):
+            S, _ = stats.total(lambda k, s=set(fit_on): k in s)
+            norm = 1.0 / np.maximum(channel_power(S, 4, n_out).sum(axis=0), 1e-300)
+
+            def cost(load):
+                return float((residual_power(model.transfer(lay, stats.centres, load), S, 4, n_out) * norm).sum())
+
+            sol = scipy.optimize.minimize_scalar(cost, bounds=(-LOAD_RANGE, LOAD_RANGE), method="bounded",
+                                                 options={"xatol": 1e-4})
+            out.update({k: float(sol.x) for k in judge})
+    return out
+
+
 def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict, *,
                  ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6,
-                 known: Mapping[str, float] | None = None, rng: np.random.Generator | None = None) -> ResponseFit:
+                 known: Mapping[str, float] | None = None, rng: np.random.Generator | None = None,
+                 per_run: bool = False, heldout_keys=()) -> ResponseFit:
     """Fit the baseline parameters in ``bounds`` ({name: (low, high)}) and the extension
     parameters ``ext_params`` (``make(values) -> (CarExtras, SensorModel)``) to the training
     statistics. Without an extension: one least-squares fit from ``base``. With one: a
     global stage (``starts`` starts of the extension parameters, a Latin hypercube over
     their box, baseline held at ``base``), then the best refined jointly with the baseline.
     ``known``: extension parameters already fitted (an extension found before this one),
-    which start at these values and take no part in the global stage."""
+    which start at these values and take no part in the global stage.
+    ``per_run``: every run carries a load of its own (:func:`loaded`), fitted with the rest
+    on the training runs and, for the runs of ``heldout_keys``, cross-fitted
+    (:func:`_cross_fitted_loads`); the fitted car carries the training runs' mean load."""
     rng = np.random.default_rng(0) if rng is None else rng
     known = dict(known or {})
-    pr = _Problem(stats, lay, train_keys, base, bounds, ext_params, make)
+    pr = _Problem(stats, lay, train_keys, base, bounds, ext_params, make, per_run)
     nb, n = pr.nb, len(pr.ranges)
-    mid = {r.name: (np.sqrt(r.low * r.high) if r.log else 0.5 * (r.low + r.high)) for r in ext_params}
+    mid = {r.name: (np.sqrt(r.low * r.high) if r.log else 0.5 * (r.low + r.high)) for r in pr.ranges[nb:]}
     x_base = pr.x_of({**base.as_dict(), **mid, **known})
-    searched = np.array([i >= nb and r.name not in known for i, r in enumerate(pr.ranges)])
+    searched = np.array([nb <= i < nb + pr.n_ext and r.name not in known for i, r in enumerate(pr.ranges)])
     if searched.any():
         k = int(searched.sum())
         u = (rng.permuted(np.tile(np.arange(starts), (k, 1)), axis=1).T + rng.uniform(size=(starts, k))) / starts
@@ -201,46 +292,67 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
         x_base = best[0]
     x, _ = pr.solve(x_base, np.ones(n, bool))
     p, extras, sensors, vals = pr.unpack(x)
-    G = transfer(p, extras, sensors, lay, pr.f)
-    nrp = residual_power(G, pr.S, 4, pr.n_out).sum(axis=0) * pr.norm
+    nrp = pr.residual_power(x).sum(axis=0) * pr.norm
     span = pr.hi - pr.lo
     at = tuple(r.name for i, r in enumerate(pr.ranges)
                if span[i] > 0 and min(x[i] - pr.lo[i], pr.hi[i] - x[i]) < 0.01 * span[i])
-    return ResponseFit(p, extras, sensors, {r.name: vals[r.name] for r in pr.ranges[nb:]}, nrp, at, pr.count)
+    values = {r.name: vals[r.name] for r in pr.ranges[nb:nb + pr.n_ext]}
+    fit = ResponseFit(p, extras, sensors, values, nrp, at, pr.count)
+    if not per_run:
+        return fit
+    # the car at the training runs' mean load; each run's load against it
+    runs = pr.run_loads(vals)
+    mean = float(np.mean(list(runs.values())))
+    p, extras = loaded(p, extras, mean)
+    loads = {k: (1 + runs[k[0]]) / (1 + mean) - 1 for k in train_keys}
+    fit = replace(fit, parameters=p, extras=extras, loads=loads)
+    loads.update(_cross_fitted_loads(stats, lay, fit, heldout_keys))
+    journeys = {}
+    for k, load in loads.items():
+        journeys.setdefault(k[0], []).append(load)
+    journeys = {r: float(np.mean(v)) for r, v in sorted(journeys.items())}
+    values.update({"load_spread": max(journeys.values()) - min(journeys.values()), "journey_loads": journeys})
+    return replace(fit, values=values, loads=loads)
 
 
-def response_nrp(stats: Statistics, lay: Layout, keys, p: CarParameters, extras: CarExtras,
-                 sensors: SensorModel, by_band: bool = False):
-    """NRP per response channel over the statistics ``keys`` (or the per-band residual and
-    channel powers with ``by_band``)."""
+def response_nrp(stats: Statistics, lay: Layout, keys, fit: ResponseFit, by_band: bool = False):
+    """NRP per response channel of the model ``fit`` over the statistics ``keys`` (or the
+    per-band residual and channel powers with ``by_band``)."""
     n_in, n_out = 4, len(lay.responses)
-    S, _ = stats.total(lambda k: k in keys)
-    G = transfer(p, extras, sensors, lay, stats.centres)
-    R = residual_power(G, S, n_in, n_out)
-    P = channel_power(S, n_in, n_out)
+    R = sum((residual_power(G, S, n_in, n_out) for G, S, _ in fit.per_group(stats, lay, keys)),
+            np.zeros((stats.centres.size, n_out)))
+    P = channel_power(stats.total(lambda k: k in keys)[0], n_in, n_out)
     if by_band:
         return R, P
     return R.sum(axis=0) / np.maximum(P.sum(axis=0), 1e-300)
 
 
-def residuals_by_cell(stats: Statistics, lay: Layout, keys, p: CarParameters, extras: CarExtras,
-                      sensors: SensorModel) -> dict:
+def residuals_by_cell(stats: Statistics, lay: Layout, keys, fit: ResponseFit) -> dict:
     """Per-band residual power (n_band, n_response) of each statistics cell in ``keys``,
-    from one evaluation of the model's transfer."""
-    G = transfer(p, extras, sensors, lay, stats.centres)
-    return {k: residual_power(G, stats.S[k], 4, len(lay.responses)) for k in keys}
+    from one evaluation of the model's transfer per load."""
+    out = {}
+    for load, ks in fit.groups(keys).items():
+        G = fit.transfer(lay, stats.centres, load)
+        out.update({k: residual_power(G, stats.S[k], 4, len(lay.responses)) for k in ks})
+    return out
 
 
-def input_coherence(stats: Statistics, lay: Layout, keys, p, extras, sensors) -> np.ndarray:
+def grouped_residual_cross_spectrum(stats: Statistics, lay: Layout, keys, fit: ResponseFit) -> np.ndarray:
+    """:func:`residual_cross_spectrum` of ``fit`` summed over ``keys``."""
+    return sum(residual_cross_spectrum(G, S, 4, len(lay.responses)) for G, S, _ in fit.per_group(stats, lay, keys))
+
+
+def input_coherence(stats: Statistics, lay: Layout, keys, fit: ResponseFit) -> np.ndarray:
     """Multiple coherence of each response's residual with the inputs, per band: near 0 when
     the model explains everything the rail input causes (n_band, n_out)."""
     n_in, n_out = 4, len(lay.responses)
     S, _ = stats.total(lambda k: k in keys)
-    G = transfer(p, extras, sensors, lay, stats.centres)
     Suu = S[:, :n_in, :n_in]
-    Syu = S[:, n_in:n_in + n_out, :n_in]
-    Sru = Syu - np.einsum("kij,kjl->kil", G, Suu)
-    R = residual_power(G, S, n_in, n_out)
+    Sru = np.zeros((S.shape[0], n_out, n_in), complex)
+    R = np.zeros((S.shape[0], n_out))
+    for G, Sg, _ in fit.per_group(stats, lay, keys):
+        Sru += Sg[:, n_in:n_in + n_out, :n_in] - np.einsum("kij,kjl->kil", G, Sg[:, :n_in, :n_in])
+        R += residual_power(G, Sg, n_in, n_out)
     Suu_inv = np.linalg.pinv(Suu, rcond=1e-8, hermitian=True)
     num = np.einsum("kij,kjl,kil->ki", Sru, Suu_inv, Sru.conj()).real
     raw = np.clip(num / np.maximum(R, 1e-300), 0.0, 1.0)
@@ -251,7 +363,7 @@ def input_coherence(stats: Statistics, lay: Layout, keys, p, extras, sensors) ->
     return np.clip((raw - bias) / (1 - bias), 0.0, 1.0)
 
 
-def input_noise_power(stats: Statistics, lay: Layout, keys, p, extras, sensors) -> np.ndarray:
+def input_noise_power(stats: Statistics, lay: Layout, keys, fit: ResponseFit) -> np.ndarray:
     """Residual power per band and response that the rail input's own measurement noise
     puts into a perfect model's prediction (errors in variables), (n_band, n_out).
 
@@ -259,8 +371,9 @@ def input_noise_power(stats: Statistics, lay: Layout, keys, p, extras, sensors) 
     round wheels its power is twice one mean's noise; a running median over bands keeps a
     wheel line out of the estimate. The four inputs are taken as carrying that noise
     independently (inputs 3 and 4 carry 1's and 2's, delayed)."""
-    S, _ = stats.total(lambda k: k in keys)
     i = stats.channels.index("consistency")
-    noise = scipy.ndimage.median_filter(S[:, i, i].real / 2, size=15, mode="nearest")
-    G = transfer(p, extras, sensors, lay, stats.centres)
-    return np.sum(np.abs(G) ** 2, axis=2) * noise[:, None]
+    out = 0.0
+    for G, S, _ in fit.per_group(stats, lay, keys):
+        noise = scipy.ndimage.median_filter(S[:, i, i].real / 2, size=15, mode="nearest")
+        out = out + np.sum(np.abs(G) ** 2, axis=2) * noise[:, None]
+    return out

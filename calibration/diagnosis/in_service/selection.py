@@ -30,8 +30,10 @@ from .confidence import Confidence, held_out_confidence, response_confidence
 from .hypotheses import Hypothesis, fit_hypothesis, reductions, systematic_left
 from .response import ResponseFit
 
-#: response extensions found one after the other, at most (a third is rare enough on a
-#: campaign of a few journeys that its held-out gain would not be trusted)
+#: response causes found one after the other, at most (a third is rare enough on a campaign
+#: of a few journeys that its held-out gain would not be trusted); properties found on the
+#: way (a bending above the fault range, equipment on its mounts, the load of each journey)
+#: do not count, since every vehicle has several
 MAX_RESPONSE_STEPS = 3
 #: response hypotheses tried in pairs when none passes alone (the best by gain)
 PAIR_CANDIDATES = 3
@@ -84,6 +86,12 @@ class Selection:
             return ev
         channels, _ = channel_evidence(data, self.vehicle_fit, ev.masks)
         return replace(ev, channels=channels)
+
+
+def _own(ext: Extension, h: Hypothesis) -> dict:
+    """The parameters of ``ext`` among those of ``h`` (``ext`` combined with others)."""
+    names = [r.name for r in ext.params] + (["load_spread", "journey_loads"] if ext.per_run else [])
+    return {n: h.parameters[n] for n in names}
 
 
 def _finding(ext: Extension, h: Hypothesis, parameters: dict, confidence: Confidence) -> Finding:
@@ -164,10 +172,13 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             return Selection(tuple(findings), None, None)
         a, b, current, ba = pair
         for e, alone, added in ((a.extension, b, ba), (b.extension, a, current)):  # each by what it adds to the other
-            findings.append(_finding(e, added, {r.name: current.parameters[r.name] for r in e.params},
+            findings.append(_finding(e, added, _own(e, current),
                                      _confidence(data, ev, alone.fit, added, e, [])))
         used = [a.name, b.name]
-    while len(used) < MAX_RESPONSE_STEPS:
+    def causes():
+        return sum(f.role == "cause" for f in findings if f.hypothesis.kind == "response")
+
+    while causes() < MAX_RESPONSE_STEPS:
         tried = []
         for name, e in EXTENSIONS.items():
             if e.kind != "response" or name in used:
@@ -179,7 +190,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
         if not ok:
             break
         e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
-        own = {r.name: h.parameters[r.name] for r in e.params}
+        own = _own(e, h)
         findings.append(_finding(e, h, own, _confidence(data, ev, current.fit, h, e, [x for _, x in ok])))
         used.append(e.name)
         current = h
