@@ -83,7 +83,7 @@ def hypothesis_intervals(data: DiagnosisData, before: ResponseFit, hyps, masks: 
         if c not in baseline_cells:
             baseline_cells[c] = cell_residuals(data, before, c, masks)
         out[h.name] = from_cells(baseline_cells[c], cell_residuals(data, h.fit, c, masks),
-                                 s.min_gain + s.penalty * h.extension.n_params, [])
+                                 s.bar(h.extension.n_params), [])
     return out
 
 

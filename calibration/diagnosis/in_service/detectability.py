@@ -317,7 +317,7 @@ def detectability(data: DiagnosisData, base: ResponseFit) -> Detectability:
     for name, ext in EXTENSIONS.items():
         if ext.always_normal:
             continue
-        bar = s.min_gain + s.penalty * ext.n_params
+        bar = s.bar(ext.n_params)
         if ext.kind == "response":
             r = r or _Responses(data, base)
             limits.append(_response_limit(name, r, bar))

@@ -26,10 +26,12 @@ the cause, the extended model and the gain.
    when two effects hide each other. Each finding carries its held-out gain's interval
    and a confidence word (:mod:`.confidence`). A passing extension
    fitted at a size every vehicle or track has (a carbody bending above 12 Hz, a track
-   stiffer than 80 MN/m per wheelset) is a property, kept and reported, not a cause. The
-   causes, joined by ``+``, are the answer; without one, ``none`` when what is left shows
-   nothing systematic (residual input-coherence, peaks and lines all below their
-   thresholds once the properties are in the model), else ``unexplained`` with the
+   stiffer than 80 MN/m per wheelset), or one for what every vehicle has at any size
+   (equipment on its mounts, the load of each journey), is a property, kept and reported,
+   not a cause. The causes, joined by ``+``, are the answer; without one, ``none`` when
+   what is left shows nothing systematic (residual input-coherence, or the coherent part
+   of the held-out error when it is within a model's accuracy, peaks and lines all below
+   their thresholds once the properties are in the model), else ``unexplained`` with the
    evidence.
 6. **Detectability** (:mod:`.detectability`): for every extension, the weakest effect this
    campaign could have named, predicted at the baseline fit; ``none`` lists them ("no

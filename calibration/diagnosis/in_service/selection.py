@@ -9,13 +9,14 @@ The data has three parts that no extension shares, each decided on its own:
   add up in one transfer function, so they are found one after the other (forward
   selection): the best hypothesis that passes (:meth:`.hypotheses.Hypothesis.passes`) is
   kept, every other response extension is fitted again on top of it and judged by what
-  it adds on held-out data, and so on while one passes, up to ``MAX_RESPONSE_STEPS``.
+  it adds on held-out data, and so on while one passes, up to ``MAX_RESPONSE_STEPS`` causes.
   When none passes alone because each leaves the systematic residual of another effect
   (two effects hide each other), the leading ones are tried in pairs (:func:`_pair`).
 
 A passing hypothesis whose fitted size is what every vehicle or track has (a carbody
 bending above the catalogue's range, a track stiffer than its soft track:
-:attr:`.extensions.Extension.normal_above`) is a *property*: kept in the model, so that
+:attr:`.extensions.Extension.normal_above`), or whose extension is what every vehicle has
+at any size (:attr:`.extensions.Extension.always_normal`), is a *property*: kept in the model, so that
 what it explains is not blamed on anything else, and reported, but not a cause.
 """
 from __future__ import annotations
@@ -104,7 +105,7 @@ def _confidence(data: DiagnosisData, ev: Evidence, before: ResponseFit, h: Hypot
     """A response finding's confidence: ``h`` improving on ``before``, ``ext`` the extension
     it adds, ``rivals`` the other hypotheses that passed at that step."""
     s = data.settings
-    return response_confidence(data, before, h.fit, h.best_channel, ev.masks, s.min_gain + s.penalty * ext.n_params,
+    return response_confidence(data, before, h.fit, h.best_channel, ev.masks, s.bar(ext.n_params),
                                [r.gain for r in rivals if r is not h])
 
 

@@ -41,6 +41,11 @@ class DiagnosisSettings:
     input_noise_share: float = 0.3  # bands where input noise makes more of the residual are not evidence
     prior_spread: float = 3.0  # search factor around nominal for parameters without priors
 
+    def bar(self, n_params: int) -> float:
+        """The held-out gain an extension of ``n_params`` parameters must clear: ``min_gain``
+        plus ``penalty`` per parameter."""
+        return self.min_gain + self.penalty * n_params
+
     def __post_init__(self):
         for name in ("penalty", "max_loss"):
             if not getattr(self, name) >= 0:
