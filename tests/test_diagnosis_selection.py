@@ -162,11 +162,12 @@ def test_a_calibration_files_extras_round_trip_and_bad_ones_are_named():
     assert data["bending_damping"] == ex.bending_damping and "reservoir_ratio" not in data
     assert extras_from_json(data) == ex and extras_from_json({}) == CarExtras()
     hung = extras_to_json(mounted(2500.0, -2.3, 9.0, 0.12))
-    assert extras_from_json(hung) == mounted(2500.0, -2.3, 9.0, 0.12) and set(hung) == {"hung_bodies"}
+    assert extras_from_json(hung) == mounted(2500.0, -2.3, 9.0, 0.12) and set(hung) == {"hung_bodies", "hung_in_m_v"}
     one = hung["hung_bodies"][0]
     for bad, word in (({"mass": 1.0}, "unknown extras"), ({"cog_offset": float("nan")}, "finite"),
                       ({"hung_bodies": {}}, "must be a list"), ({"hung_bodies": [{**one, "x": None}]}, "x must be"),
                       ({"hung_bodies": [{**one, "name": "carbody"}]}, "new body's name"),
+                      ({"hung_in_m_v": 1}, "true or false"),
                       ({"cog_offset": "0.5"}, "finite"), ([1.0], "must map")):
         with pytest.raises(ValueError, match=word):
             extras_from_json(bad)
@@ -193,7 +194,30 @@ def test_mounted_equipment_is_a_mass_on_its_mount_and_part_of_the_vehicle_at_any
     assert np.sqrt(mount.stiffness / body.mass) / (2 * np.pi) == pytest.approx(9.0)
     assert mount.damping / (2 * np.sqrt(mount.stiffness * body.mass)) == pytest.approx(0.12)
     ext = EXTENSIONS["mounted_equipment"]
-    assert ext.is_property({"equipment_mass": 5000.0}) and "normal vehicle's design" in ext.normal_words()
+    assert ext.is_property({"equipment_mass": 5000.0}) and "every vehicle's design or service" in ext.normal_words()
+
+
+def test_mounted_equipment_is_part_of_the_carbodys_mass_so_it_cannot_stand_in_for_a_centre_of_mass_offset():
+    """Hung from the carbody's own m_v, stiffly mounted equipment far forward moves the
+    rigid-body modes by well under the 0.1 % a centre of mass 1 m forward moves them by more."""
+    import numpy as np
+
+    from calibration.diagnosis.in_service.extensions import mounted
+    from calibration.models.car2d import build_car, undamped_modes
+    from calibration.models.parameters import CarParameters
+
+    p = CarParameters(m_v=38_000.0, J_v=1.1e6, m_b=3_000.0, J_b=3_500.0, m_w=1_400.0, k_p=2.8e6, c_p=29_000.0,
+                      k_s=720_000.0, c_s=45_000.0, L_v=8.0, L_b=1.2)
+
+    def rigid(extras):
+        return np.array([m.frequency_hz for m in undamped_modes(build_car(p, extras=extras))][:2])
+
+    base = rigid(CarExtras())
+    hung = rigid(mounted(4_000.0, 7.0, 25.0, 0.1))
+    assert np.max(np.abs(hung / base - 1)) < 1e-3
+    assert np.max(np.abs(rigid(CarExtras(cog_offset=1.0)) / base - 1)) > 1e-2
+    with pytest.raises(ValueError, match="positive mass and inertia"):
+        build_car(p, extras=mounted(40_000.0, 7.0, 9.0, 0.1))  # more than the carbody weighs
 
 
 def test_a_journeys_load_leaves_a_levelled_cars_bounce_and_lowers_its_bending():
@@ -214,3 +238,22 @@ def test_a_journeys_load_leaves_a_levelled_cars_bounce_and_lowers_its_bending():
     assert ey.bending_hz == pytest.approx(14.0 / np.sqrt(1.06))
     assert loaded(p, ex, 0.0) == (p, ex)
     assert EXTENSIONS["journey_load"].per_run and EXTENSIONS["journey_load"].is_property({})
+
+
+def test_a_centre_of_mass_within_a_builds_tolerance_is_a_property_beyond_it_a_cause():
+    ext = EXTENSIONS["cog_offset"]
+    assert ext.is_property({"cog_offset": -0.07}) and not ext.is_property({"cog_offset": 0.4})
+
+
+def test_a_property_on_a_bound_of_its_range_stands_in_for_something_else_and_is_not_kept():
+    from dataclasses import replace
+
+    from calibration.diagnosis.in_service import DiagnosisSettings
+    from calibration.diagnosis.in_service.selection import _passes
+
+    s, ext = DiagnosisSettings(), EXTENSIONS["mounted_equipment"]
+    h = replace(_hypothesis(0.4, 0.1), extension=ext)
+    assert _passes(ext, h, s)
+    assert not _passes(ext, replace(h, parameters_at_bounds=("mount_damping",)), s)
+    other = EXTENSIONS["cog_offset"]  # a cause's range is the catalogue's: on its bound it is still that cause
+    assert _passes(other, replace(h, extension=other, parameters_at_bounds=("cog_offset",)), s)

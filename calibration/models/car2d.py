@@ -56,6 +56,11 @@ class CarExtras:
         node's own pole near -c_o / 1 kg, far above any band of interest).
     bodies, elements : further bodies and spring-dampers added as they are (e.g. equipment
         hung resiliently on a frame).
+    hung_in_m_v : the further bodies' masses are part of m_v and J_v (equipment of a carbody
+        weighed or calibrated whole): the rigid carbody keeps the rest, its centre of mass
+        and inertia moved so that the whole keeps m_v, its centre at ``cog_offset`` and J_v
+        about it; the equipment then changes nothing at low frequency, where it moves with
+        the carbody, only around its mounts.
     track_stiffness : [N/m] per wheelset: wheelsets are free bodies on the track (rail pads,
         sleepers, ballast) of this stiffness, damping ratio ``track_damping_ratio`` with the
         wheelset plus ``track_mass`` [kg] of rail and sleepers moving with it; the rail
@@ -76,12 +81,13 @@ class CarExtras:
     track_mass: float = 250.0
     bodies: tuple[Body, ...] = ()
     elements: tuple[SpringDamper, ...] = ()
+    hung_in_m_v: bool = False
 
 
 #: The additions a calibration file carries (``extras``): CarExtras' scalar fields.
 EXTRAS_FIELDS = ("cog_offset", "bending_hz", "bending_damping", "bending_mass_ratio", "bending_node",
                  "carbody_length", "reservoir_ratio", "reservoir_corner_hz", "node_mass", "track_stiffness",
-                 "track_damping_ratio", "track_mass")
+                 "track_damping_ratio", "track_mass", "hung_in_m_v")
 
 
 #: A calibration file's form of extra bodies: each a point mass hung under the carbody at its
@@ -132,7 +138,11 @@ def extras_from_json(data) -> CarExtras:
     unknown = sorted(set(data) - set(EXTRAS_FIELDS))
     if unknown:
         raise ValueError(f"unknown extras {unknown}; known: {', '.join(EXTRAS_FIELDS + ('hung_bodies',))}")
+    if not isinstance(data.get("hung_in_m_v", False), bool):
+        raise ValueError(f"extras.hung_in_m_v must be true or false, got {data['hung_in_m_v']!r}")
     for k, v in data.items():
+        if k == "hung_in_m_v":
+            continue
         if not (v is None and k in ("bending_hz", "bending_node", "track_stiffness")) and \
                 not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
             raise ValueError(f"extras.{k} must be a finite number, got {v!r}")
@@ -177,6 +187,22 @@ def sensor_model_from_json(data) -> tuple[float, float]:
     return float(data.get("bogie_dx", 0.0)), float(data.get("gyro_gain", 1.0))
 
 
+def _carbody_rest(p: CarParameters, ex: CarExtras) -> tuple[float, float, float]:
+    """(mass [kg], centre x [m], pitch inertia [kg m^2] about it) of the rigid carbody: m_v
+    at ``cog_offset`` with J_v, less the hung bodies when they are part of it."""
+    if not (ex.hung_in_m_v and ex.bodies):
+        return p.m_v, ex.cog_offset, p.J_v
+    m_e = sum(b.mass for b in ex.bodies)
+    m = p.m_v - m_e
+    x = (p.m_v * ex.cog_offset - sum(b.mass * b.x for b in ex.bodies)) / m if m > 0 else 0.0
+    # J about x = 0 of the whole, less the bodies' (point masses), moved to the rest's centre
+    J = p.J_v + p.m_v * ex.cog_offset ** 2 - sum(b.mass * b.x ** 2 for b in ex.bodies) - m * x ** 2
+    if not (m > 0 and J > 0):
+        raise ValueError(f"hung bodies of {m_e:.0f} kg (part of m_v = {p.m_v:.0f} kg) leave the carbody "
+                         f"{m:.0f} kg and J {J:.3g} kg m^2: they must leave it a positive mass and inertia")
+    return m, x, J
+
+
 def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
               c_contact: float = 0.0, extras: CarExtras | None = None) -> Assembly:
     """Assemble the 2D car from rigid bodies and spring-dampers (plus ``extras``)."""
@@ -193,7 +219,7 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
     if ex.bending_hz is not None:
         modes = (ElasticMode("bending", beam_bending_shape(ex.carbody_length, ex.bending_node), ex.bending_mass_ratio * p.m_v,
                              ex.bending_hz, ex.bending_damping),)
-    bodies = [Body("carbody", p.m_v, ex.cog_offset, p.J_v, modes)]
+    bodies = [Body("carbody", *_carbody_rest(p, ex), modes)]
     bodies += [Body(f"bogie{i + 1}", p.m_b, xb[i], p.J_b) for i in range(2)]
     elements = [
         SpringDamper(f"secondary{i + 1}", Attachment("carbody", xb[i]), Attachment(f"bogie{i + 1}", xb[i]),

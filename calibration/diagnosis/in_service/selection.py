@@ -89,6 +89,18 @@ class Selection:
         return replace(ev, channels=channels)
 
 
+def _stands_in(ext: Extension, h: Hypothesis) -> bool:
+    """An extension for what every vehicle has (:attr:`.extensions.Extension.always_normal`)
+    fitted with a parameter on a bound of its range is standing in for something it cannot
+    model (a mount at its stiffest standing for a centre of mass off the middle, its damping
+    at the top for a low-frequency misfit): it is not that property, and not kept."""
+    return ext.always_normal and any(r.name in h.parameters_at_bounds for r in ext.params)
+
+
+def _passes(ext: Extension, h: Hypothesis, s) -> bool:
+    return h.passes(s) and not _stands_in(ext, h)
+
+
 def _own(ext: Extension, h: Hypothesis) -> dict:
     """The parameters of ``ext`` among those of ``h`` (``ext`` combined with others)."""
     names = [r.name for r in ext.params] + (["load_spread", "journey_loads"] if ext.per_run else [])
@@ -161,9 +173,9 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
                 how = "by speed (each speed bin from the others)" if kind == "track" else "on held-out runs"
                 findings.append(_finding(h.extension, h, h.parameters, held_out_confidence(h.gain, how)))
     response = [h for h in hyps if h.kind == "response"]
-    current = max((h for h in response if h.passes(s)), key=lambda h: h.penalised_gain, default=None)
+    passed = [h for h in response if _passes(h.extension, h, s)]
+    current = max(passed, key=lambda h: h.penalised_gain, default=None)
     if current is not None:
-        passed = [h for h in response if h.passes(s)]
         findings.append(_finding(current.extension, current, current.parameters,
                                  _confidence(data, ev, base_fit, current, current.extension, passed)))
         used = [current.name]
@@ -187,7 +199,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             h = fit_hypothesis(data, combined(current.extension, e), base_fit, ev, 0.0, added_to=current)
             say(f"{' + '.join(used)} + {name}: held-out gain {h.gain:.1%} on {h.best_channel}")
             tried.append((e, h))
-        ok = [(e, h) for e, h in tried if h.passes(s)]
+        ok = [(e, h) for e, h in tried if _passes(e, h, s)]
         if not ok:
             break
         e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
