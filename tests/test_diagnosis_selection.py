@@ -242,7 +242,7 @@ def test_a_journeys_load_leaves_a_levelled_cars_bounce_and_lowers_its_bending():
 
 def test_a_centre_of_mass_within_a_builds_tolerance_is_a_property_beyond_it_a_cause():
     ext = EXTENSIONS["cog_offset"]
-    assert ext.is_property({"cog_offset": -0.07}) and not ext.is_property({"cog_offset": 0.4})
+    assert ext.is_property({"cog_offset": -0.15}) and not ext.is_property({"cog_offset": 0.4})
 
 
 def test_a_property_on_a_bound_of_its_range_stands_in_for_something_else_and_is_not_kept():

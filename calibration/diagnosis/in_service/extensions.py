@@ -36,10 +36,12 @@ BENDING_NODE_RANGE = (0.35, 0.75)
 #: mounting tolerance; the catalogue's offsets are 0.3-1.5 m): what the extension then gains
 #: is its gyro's scale error within GYRO_SCALE_ERROR, the sensor's calibration, not a fault.
 SENSOR_PLACED_WITHIN_M = 0.1
-#: A carbody's centre of mass found this close to its middle [m] is a build's and a load's
-#: tolerance (a passenger moved by a seat row moves it a centimetre; the catalogue's offsets
-#: are 0.4-1.5 m): reported as found, not as a fault.
-COG_CENTRED_WITHIN_M = 0.1
+#: A carbody's centre of mass found this close to its middle [m] is its design's and its
+#: load's (underfloor equipment and tanks are never quite symmetric: the library's intercity
+#: car, its powerpack 1.5 m aft, has its centre 0.12 m aft at mid load and 0.06-0.20 m over
+#: the seed's load ranges); half the catalogue's smallest fault, 0.4 m. Reported as found,
+#: not as a fault.
+COG_CENTRED_WITHIN_M = 0.2
 #: Underfloor equipment hangs between the bogies: within this distance of the carbody's
 #: centre [m] (bogie centres of passenger cars sit 8-9.5 m from it).
 UNDERFLOOR_M = 8.0
