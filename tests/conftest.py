@@ -105,6 +105,7 @@ def _files_sharing_session_fixtures(items) -> dict[str, str]:
     return group
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Groups for pytest-xdist's ``--dist loadgroup`` (``make test``): every test file runs on
     one worker, so its module and session fixtures are built once, except tests marked
@@ -112,7 +113,11 @@ def pytest_collection_modifyitems(config, items):
     that the workers share them. Tests using a :data:`SLOW_FIXTURES` fixture are marked
     ``slow``. The groups are ordered dearest first (``make test`` keeps this order with
     ``--no-loadscope-reorder``): the workers hand out groups in order, and a two-minute test
-    left to the end ran alone while the other worker idled."""
+    left to the end ran alone while the other worker idled.
+
+    ``tryfirst``: an xdist worker reads the ``xdist_group`` marks in its own
+    ``pytest_collection_modifyitems``, registered after this conftest and so called before
+    it: without ``tryfirst`` it saw no marks (see :class:`_GroupInNodeId` for the rest)."""
     group_of, cost = {}, {}
     file_group = _files_sharing_session_fixtures(items)
     for item in items:
@@ -125,6 +130,34 @@ def pytest_collection_modifyitems(config, items):
         cost[group] = cost.get(group, 0.0) + _cost(item)
     order = {item.nodeid: k for k, item in enumerate(items)}
     items.sort(key=lambda item: (-cost[group_of[item.nodeid]], order[item.nodeid]))
+
+
+class _GroupInNodeId:
+    """pytest-xdist 3.8 sends a test's group to the scheduler as an ``@group`` suffix of its
+    node id, written to ``item._nodeid``; pytest 9.2 builds node ids from the structured
+    ``item._id`` and ignores it (pytest-dev/pytest-xdist#1386, open). The groups were then
+    lost without a word: every test was a group of its own, the files' tests were dealt to
+    both workers, and each worker built the session and module fixtures again (the synthetic
+    campaign, the shaker test, the FMUs). This writes the suffix where pytest reads it, after
+    xdist's own hook, unless the id already carries it (an xdist that does it itself)."""
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_collection_modifyitems(self, config, items):
+        if not config.getvalue("loadgroup"):
+            return
+        from _pytest.nodeid import NodeId
+
+        for item in items:
+            groups = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+                             for m in item.iter_markers("xdist_group")})
+            suffix = "@" + "_".join(groups)
+            if groups and not item.nodeid.endswith(suffix) and hasattr(item, "_id"):
+                item._id = NodeId.parse(item.nodeid + suffix)
+
+
+def pytest_configure(config):
+    if hasattr(config, "workerinput"):  # an xdist worker
+        config.pluginmanager.register(_GroupInNodeId(), "railcal-xdist-group-in-node-id")
 
 
 @pytest.fixture
