@@ -39,7 +39,8 @@ def _cap_blas_threads_per_worker():
     cores (two workers with two OpenBLAS threads each on two cores ran test_ema.py at
     52 s instead of 22 s). Results do not depend on it (tests/test_ema.py and
     test_box_calibration.py compare one and two threads); ``RAILCAL_TEST_BLAS_CAP=off``
-    runs without it, and a run without xdist (``-n 0``) never has it."""
+    runs without it, and a run without xdist (``-n 0``) never has it. The processes a
+    worker starts inherit it through the BLAS libraries' environment variables."""
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
     if workers <= 1 or os.environ.get("RAILCAL_TEST_BLAS_CAP", "on") == "off":
         return None
@@ -47,7 +48,14 @@ def _cap_blas_threads_per_worker():
     from threadpoolctl import threadpool_limits
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return threadpool_limits(max(1, cores // workers), user_api="blas")
+    cap = max(1, cores // workers)
+    # the same cap for the processes a test starts (the README tour's railcal commands, an
+    # import check): threadpoolctl reaches this process only, and a child's OpenBLAS took
+    # every core beside the other worker (the shaker tour: 505 s of wall time for 305 s of
+    # CPU time in a suite run)
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(cap)
+    return threadpool_limits(cap, user_api="blas")
 
 
 _BLAS_CAP = _cap_blas_threads_per_worker()
