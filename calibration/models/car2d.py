@@ -116,6 +116,11 @@ def _hung_to_json(extras: CarExtras) -> list[dict]:
     return out
 
 
+def _finite_number(v) -> bool:
+    """A calibration file's number: an int or float (not a bool), finite."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
 def extras_to_json(extras: CarExtras) -> dict:
     """The additions ``extras`` makes to the seed's car, as a calibration file's ``extras``
     (the fields that differ from the defaults; a bending's shape fields with it; bodies hung
@@ -144,7 +149,7 @@ def extras_from_json(data) -> CarExtras:
         if k == "hung_in_m_v":
             continue
         if not (v is None and k in ("bending_hz", "bending_node", "track_stiffness")) and \
-                not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
+                not _finite_number(v):
             raise ValueError(f"extras.{k} must be a finite number, got {v!r}")
     if not isinstance(hung, list):
         raise ValueError("extras.hung_bodies must be a list of bodies")
@@ -156,7 +161,7 @@ def extras_from_json(data) -> CarExtras:
             raise ValueError(f"extras.hung_bodies[{i}].name must be a new body's name, got {h['name']!r}")
         for k in HUNG_KEYS[1:]:
             v = h[k]
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)) or \
+            if not _finite_number(v) or \
                     (k != "x" and not v > 0 and not (k == "mount_damping" and v == 0)):
                 raise ValueError(f"extras.hung_bodies[{i}].{k} must be a finite number (positive, but x), got {v!r}")
         b, e = hung_body(h["name"], float(h["mass"]), float(h["x"]), float(h["mount_stiffness"]),
@@ -182,7 +187,7 @@ def sensor_model_from_json(data) -> tuple[float, float]:
     if not isinstance(data, dict) or set(data) - {"bogie_dx", "gyro_gain"}:
         raise ValueError("'sensor_model' must map bogie_dx and gyro_gain to numbers")
     for k, v in data.items():
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)):
+        if not _finite_number(v):
             raise ValueError(f"sensor_model.{k} must be a finite number, got {v!r}")
     return float(data.get("bogie_dx", 0.0)), float(data.get("gyro_gain", 1.0))
 
