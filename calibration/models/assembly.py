@@ -182,15 +182,14 @@ def assemble(bodies: list[Body], elements: list[SpringDamper], inputs: list[str]
             M[i, i] = mode.modal_mass
             K[i, i] = mode.modal_mass * w * w
             C[i, i] = 2 * mode.damping_ratio * mode.modal_mass * w
-    B_k = np.zeros((n, m))
-    B_c = np.zeros((n, m))
-    for e in elements:
+    g = np.zeros((len(elements), n))  # element elongations = g @ q + h @ u (compression positive down on top)
+    h = np.zeros((len(elements), m))
+    for r, e in enumerate(elements):
         g_top, h_top = _point_rows(bodies, dofs, e.top, inputs)
         g_bot, h_bot = _point_rows(bodies, dofs, e.bottom, inputs)
-        g = g_top - g_bot  # elongation = g @ q + h @ u (compression positive down on top)
-        h = h_top - h_bot
-        K += e.stiffness * np.outer(g, g)
-        C += e.damping * np.outer(g, g)
-        B_k -= e.stiffness * np.outer(g, h)
-        B_c -= e.damping * np.outer(g, h)
-    return Assembly(dofs, tuple(inputs), M, C, K, B_k, B_c, tuple(bodies), tuple(elements))
+        g[r], h[r] = g_top - g_bot, h_top - h_bot
+    gk = g.T * np.array([e.stiffness for e in elements], float)
+    gc = g.T * np.array([e.damping for e in elements], float)
+    K += gk @ g
+    C += gc @ g
+    return Assembly(dofs, tuple(inputs), M, C, K, -gk @ h, -gc @ h, tuple(bodies), tuple(elements))

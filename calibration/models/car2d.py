@@ -466,15 +466,10 @@ def state_space(asm: Assembly, outputs: list[Output]) -> StateSpace:
     return StateSpace(A, B, C, D, tuple(o.name for o in outputs), inputs)
 
 
-def frequency_response(asm: Assembly, outputs: list[Output], frequency: np.ndarray) -> np.ndarray:
-    """Complex response of ``outputs`` to unit harmonic rail levels, (n_freq, n_out, n_input):
-    y(w) = H(w) u(w) with u the inputs' levels (their rates i w u included)."""
-    w = 2 * np.pi * np.asarray(frequency, float)
-    n = len(asm.dofs)
-    D = asm.K[None] - (w * w)[:, None, None] * asm.M[None] + 1j * w[:, None, None] * asm.C[None]
-    F = asm.B_k[None] + 1j * w[:, None, None] * asm.B_c[None]
-    Hq = np.linalg.solve(D, F)  # (n_f, n_dof, n_in)
-    rows = np.zeros((len(outputs), n))
+def output_rows(asm: Assembly, outputs: list[Output]) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, power): each output's row over the DOFs (its displacement or pitch angle is
+    rows @ q) and the power of i w that makes it a velocity (1) or acceleration (2)."""
+    rows = np.zeros((len(outputs), len(asm.dofs)))
     power = np.zeros(len(outputs))
     for r, o in enumerate(outputs):
         if o.kind in ("pitch_angle", "pitch_rate"):
@@ -482,7 +477,24 @@ def frequency_response(asm: Assembly, outputs: list[Output], frequency: np.ndarr
         else:
             rows[r] = asm.point_row(o.body, o.x)
         power[r] = {"displacement": 0, "pitch_angle": 0, "velocity": 1, "pitch_rate": 1, "acceleration": 2}[o.kind]
-    return (1j * w[:, None, None]) ** power[None, :, None] * np.einsum("rn,fni->fri", rows, Hq)
+    return rows, power
+
+
+def dynamic_stiffness(asm: Assembly, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(D, F) at angular frequencies ``w``: D(w) q = F(w) u, (n_freq, n_dof, n_dof) and
+    (n_freq, n_dof, n_input)."""
+    D = asm.K[None] - (w * w)[:, None, None] * asm.M[None] + 1j * w[:, None, None] * asm.C[None]
+    F = asm.B_k[None] + 1j * w[:, None, None] * asm.B_c[None]
+    return D, F
+
+
+def frequency_response(asm: Assembly, outputs: list[Output], frequency: np.ndarray) -> np.ndarray:
+    """Complex response of ``outputs`` to unit harmonic rail levels, (n_freq, n_out, n_input):
+    y(w) = H(w) u(w) with u the inputs' levels (their rates i w u included)."""
+    w = 2 * np.pi * np.asarray(frequency, float)
+    Hq = np.linalg.solve(*dynamic_stiffness(asm, w))  # (n_f, n_dof, n_in)
+    rows, power = output_rows(asm, outputs)
+    return (1j * w[:, None, None]) ** power[None, :, None] * (rows @ Hq)
 
 
 def static_deflection(asm: Assembly, gravity: float = GRAVITY) -> np.ndarray:
