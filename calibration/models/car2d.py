@@ -480,19 +480,19 @@ def output_rows(asm: Assembly, outputs: list[Output]) -> tuple[np.ndarray, np.nd
     return rows, power
 
 
-def dynamic_stiffness(asm: Assembly, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(D, F) at angular frequencies ``w``: D(w) q = F(w) u, (n_freq, n_dof, n_dof) and
-    (n_freq, n_dof, n_input)."""
-    D = asm.K[None] - (w * w)[:, None, None] * asm.M[None] + 1j * w[:, None, None] * asm.C[None]
-    F = asm.B_k[None] + 1j * w[:, None, None] * asm.B_c[None]
-    return D, F
+def dynamic_stiffness(K: np.ndarray, M: np.ndarray, C: np.ndarray, B_k: np.ndarray, B_c: np.ndarray,
+                      w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(D, F) of an assembly's matrices at angular frequencies ``w``: D(w) q = F(w) u,
+    (n_freq, n_dof, n_dof) and (n_freq, n_dof, n_input)."""
+    jw = 1j * w[:, None, None]
+    return K[None] - (w * w)[:, None, None] * M[None] + jw * C[None], B_k[None] + jw * B_c[None]
 
 
 def frequency_response(asm: Assembly, outputs: list[Output], frequency: np.ndarray) -> np.ndarray:
     """Complex response of ``outputs`` to unit harmonic rail levels, (n_freq, n_out, n_input):
     y(w) = H(w) u(w) with u the inputs' levels (their rates i w u included)."""
     w = 2 * np.pi * np.asarray(frequency, float)
-    Hq = np.linalg.solve(*dynamic_stiffness(asm, w))  # (n_f, n_dof, n_in)
+    Hq = np.linalg.solve(*dynamic_stiffness(asm.K, asm.M, asm.C, asm.B_k, asm.B_c, w))  # (n_f, n_dof, n_in)
     rows, power = output_rows(asm, outputs)
     return (1j * w[:, None, None]) ** power[None, :, None] * (rows @ Hq)
 

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.ndimage
 import scipy.optimize
 
-from ...models.car2d import CarExtras, Output, build_car, output_rows
+from ...models.car2d import CarExtras, Output, build_car, dynamic_stiffness, output_rows
 from ...models.parameters import CarParameters
 from .records import Layout, Statistics
 
@@ -85,20 +85,13 @@ def _system(p: CarParameters, extras: CarExtras, sensors: SensorModel, lay: Layo
     return asm.K, asm.M, asm.C, asm.B_k, asm.B_c, rows, scale
 
 
-def _solve(system: tuple, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(D, F) of a :func:`_system` at ``w``: D(w) q = F(w) u."""
-    K, M, C, B_k, B_c = system[:5]
-    jw = 1j * w[:, None, None]
-    return K[None] - (w * w)[:, None, None] * M[None] + jw * C[None], B_k[None] + jw * B_c[None]
-
-
 def transfer(p: CarParameters, extras: CarExtras, sensors: SensorModel, lay: Layout,
              f: np.ndarray) -> np.ndarray:
     """(n_band, n_response, 4): responses per unit rail acceleration under wheelsets 1-4."""
     w = 2 * np.pi * np.asarray(f, float)
     system = _system(p, extras, sensors, lay, w)
     rows, scale = system[5:]
-    return scale[:, :, None] * (rows @ np.linalg.solve(*_solve(system, w)))
+    return scale[:, :, None] * (rows @ np.linalg.solve(*dynamic_stiffness(*system[:5], w)))
 
 
 def residual_power(G: np.ndarray, S: np.ndarray, n_in: int, n_out: int) -> np.ndarray:
@@ -111,8 +104,8 @@ def _raw_residual_power(G: np.ndarray, S: np.ndarray, n_in: int, n_out: int) -> 
     Suu = S[:, :n_in, :n_in]
     Syu = S[:, n_in:n_in + n_out, :n_in]
     Syy = np.einsum("kii->ki", S[:, n_in:n_in + n_out, n_in:n_in + n_out]).real
-    # diag(G S_uy) and diag(G S_uu G^H), as row sums of elementwise products: matmul, not a
-    # three-operand einsum, since this runs tens of thousands of times in a fit
+    # diag(G S_uy) and diag(G S_uu G^H), as row sums of elementwise products (matmul: a
+    # three-operand einsum is several times slower, and this runs at every step of a fit)
     GSuy = (G * Syu.conj()).sum(axis=2).real
     GSG = ((G @ Suu) * G.conj()).sum(axis=2).real
     return Syy - 2 * GSuy + GSG
@@ -263,7 +256,7 @@ class ResponseProblem:
         cost, grad = 0.0, np.zeros(idx.size)
         for g, (p, extras, sensors, S) in enumerate(groups):
             system = _system(p, extras, sensors, self.lay, w)
-            D, F = _solve(system, w)
+            D, F = dynamic_stiffness(*system[:5], w)
             Dinv = np.linalg.inv(D)
             Hq = Dinv @ F
             rows, scale = system[5:]
