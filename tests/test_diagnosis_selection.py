@@ -249,11 +249,31 @@ def test_a_property_on_a_bound_of_its_range_stands_in_for_something_else_and_is_
     from dataclasses import replace
 
     from calibration.diagnosis.in_service import DiagnosisSettings
-    from calibration.diagnosis.in_service.selection import _passes
+    from calibration.diagnosis.in_service.selection import kept
 
     s, ext = DiagnosisSettings(), EXTENSIONS["mounted_equipment"]
     h = replace(_hypothesis(0.4, 0.1), extension=ext)
-    assert _passes(ext, h, s)
-    assert not _passes(ext, replace(h, parameters_at_bounds=("mount_damping",)), s)
+    assert kept(ext, h, s)
+    assert not kept(ext, replace(h, parameters_at_bounds=("mount_damping",)), s)
     other = EXTENSIONS["cog_offset"]  # a cause's range is the catalogue's: on its bound it is still that cause
-    assert _passes(other, replace(h, extension=other, parameters_at_bounds=("cog_offset",)), s)
+    assert kept(other, replace(h, extension=other, parameters_at_bounds=("cog_offset",)), s)
+
+
+def test_a_property_is_kept_without_explaining_the_whole_systematic_residual_a_cause_is_not():
+    """A property is not the answer: what it leaves systematic is for the next step. A
+    cause must explain it. Neither counts a gain on a channel already within a model's
+    accuracy."""
+    from dataclasses import replace
+
+    from calibration.diagnosis.in_service import DiagnosisSettings
+    from calibration.diagnosis.in_service.selection import kept
+
+    s = DiagnosisSettings()
+    bending, cog = EXTENSIONS["carbody_bending"], EXTENSIONS["cog_offset"]
+    leaves = replace(_hypothesis(0.5, 2 * s.max_systematic_left, left_after=0.05), extension=bending)
+    assert kept(bending, replace(leaves, parameters={"bending_hz": 14.0}), s)  # above the fault range: a property
+    assert not kept(bending, replace(leaves, parameters={"bending_hz": 8.0}), s)  # a fault: must explain it
+    assert not kept(cog, replace(leaves, extension=cog, parameters={"cog_offset": 1.0}), s)
+    small = replace(_hypothesis(0.5, 0.1), on_model_error=False)
+    assert not small.passes(s) and not small.gains_enough(s)
+    assert not kept(bending, replace(small, extension=bending, parameters={"bending_hz": 14.0}), s)

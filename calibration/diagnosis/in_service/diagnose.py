@@ -188,6 +188,9 @@ def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, h
             worse = ", ".join(f"{n} ({h.heldout_error[n]['before']:.3g} -> {h.heldout_error[n]['after']:.3g})"
                               for n in h.losses)
             out.append(f"{h.name} gains {h.gain:.0%} on {h.best_channel} but makes held-out {worse} worse")
+        if not h.on_model_error:
+            out.append(f"{h.name} gains {h.gain:.0%} on {h.best_channel}, a channel already within a model's "
+                       "accuracy: no model error it explains")
         if h.leaves_systematic(s):
             out.append(f"{h.name} gains {h.gain:.0%} on {h.best_channel} but leaves "
                        f"{h.systematic_left:.0%} of its systematic residual (error x input coherence): "

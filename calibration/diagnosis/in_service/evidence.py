@@ -282,7 +282,7 @@ def alarms(ev: Evidence, s: DiagnosisSettings) -> list[str]:
     driven by these inputs can predict; :func:`notes` reports it."""
     out = []
     for name, c in ev.channels.items():
-        if _coherent(c, s) and not _within_accuracy(c, s):
+        if _coherent(c, s) and not within_accuracy(c, s):
             out.append(f"{name}: residual coherent with the rail input ({c['input_coherence']:.2f}), "
                        f"a systematic model error ({_systematic_words(c)})")
         for p in c["peaks"]:
@@ -299,7 +299,8 @@ def _coherent(c: dict, s: DiagnosisSettings) -> bool:
     return c["input_coherence"] >= s.coherence_alarm
 
 
-def _within_accuracy(c: dict, s: DiagnosisSettings) -> bool:
+def within_accuracy(c: dict, s: DiagnosisSettings) -> bool:
+    """Is a channel's coherent residual (held-out NRP x input coherence) under ``systematic_floor``?"""
     return c["heldout_nrp"] * c["input_coherence"] < s.systematic_floor
 
 
@@ -313,7 +314,7 @@ def notes(ev: Evidence, s: DiagnosisSettings) -> list[str]:
     within a model's accuracy, and strong peaks not coherent with the rail input."""
     small = [f"{name}: residual coherent with the rail input ({c['input_coherence']:.2f}) but within a model's "
              f"accuracy ({_systematic_words(c)}; a model error from {s.systematic_floor:.0%})"
-             for name, c in ev.channels.items() if _coherent(c, s) and _within_accuracy(c, s)]
+             for name, c in ev.channels.items() if _coherent(c, s) and within_accuracy(c, s)]
     return small + [
         f"{_peak_words(name, p)}; not coherent with the rail input ({p['input_coherence']:.2f}): response to "
         "an excitation the sensors do not measure, not counted as a model error"

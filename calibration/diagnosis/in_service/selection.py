@@ -97,8 +97,14 @@ def _stands_in(ext: Extension, h: Hypothesis) -> bool:
     return ext.always_normal and any(r.name in h.parameters_at_bounds for r in ext.params)
 
 
-def _passes(ext: Extension, h: Hypothesis, s) -> bool:
-    return h.passes(s) and not _stands_in(ext, h)
+def kept(ext: Extension, h: Hypothesis, s) -> bool:
+    """Is ``h`` (``ext`` added) kept in the model: it passes, or it is a property that gains
+    enough and loses nothing? A property need not explain the whole systematic residual:
+    it is not the answer, and what it leaves is for the next step (a carbody's own 14 Hz
+    bending leaves what a centre of mass 1 m off adds; bench seeds 8055, 8058, 8059)."""
+    if _stands_in(ext, h):
+        return False
+    return h.passes(s) or (ext.is_property(h.parameters) and h.gains_enough(s))
 
 
 def _own(ext: Extension, h: Hypothesis) -> dict:
@@ -130,15 +136,15 @@ def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit
     as one hypothesis must. (a, b, a then b, b then a), each alone and combined both ways;
     None when no pair passes."""
     s = data.settings
-    blocked = sorted((h for h in response if h.penalised_gain >= s.min_gain and not h.losses
-                      and h.leaves_systematic(s)), key=lambda h: -h.penalised_gain)[:PAIR_CANDIDATES]
+    blocked = sorted((h for h in response if h.gains_enough(s) and h.leaves_systematic(s)),
+                     key=lambda h: -h.penalised_gain)[:PAIR_CANDIDATES]
     best = None
     for i, a in enumerate(blocked):
         for b in blocked[i + 1:]:
             ab = fit_hypothesis(data, combined(a.extension, b.extension), base_fit, ev, 0.0, added_to=a)
             ba = fit_hypothesis(data, combined(b.extension, a.extension), base_fit, ev, 0.0, added_to=b)
             say(f"{a.name} with {b.name}: held-out gain {ab.gain:.1%} over {a.name}, {ba.gain:.1%} over {b.name}")
-            if all(h.penalised_gain >= s.min_gain and not h.losses for h in (ab, ba)) \
+            if all(h.gains_enough(s) for h in (ab, ba)) \
                     and _left_of_baseline(data, ab, base_fit, ev) <= s.max_systematic_left \
                     and (best is None or ab.penalised_gain > best[1].penalised_gain):
                 best = (a, b, ab, ba)
@@ -173,7 +179,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
                 how = "by speed (each speed bin from the others)" if kind == "track" else "on held-out runs"
                 findings.append(_finding(h.extension, h, h.parameters, held_out_confidence(h.gain, how)))
     response = [h for h in hyps if h.kind == "response"]
-    passed = [h for h in response if _passes(h.extension, h, s)]
+    passed = [h for h in response if kept(h.extension, h, s)]
     current = max(passed, key=lambda h: h.penalised_gain, default=None)
     if current is not None:
         findings.append(_finding(current.extension, current, current.parameters,
@@ -199,7 +205,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             h = fit_hypothesis(data, combined(current.extension, e), base_fit, ev, 0.0, added_to=current)
             say(f"{' + '.join(used)} + {name}: held-out gain {h.gain:.1%} on {h.best_channel}")
             tried.append((e, h))
-        ok = [(e, h) for e, h in tried if _passes(e, h, s)]
+        ok = [(e, h) for e, h in tried if kept(e, h, s)]
         if not ok:
             break
         e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
