@@ -14,7 +14,9 @@ the cause, the extended model and the gain.
    evidence that speaks for it and ranked; the leading ones are fitted and judged on
    held-out data (:mod:`.hypotheses`).
 5. **Decision** (:mod:`.selection`). A hypothesis *passes* when its penalised gain
-   exceeds ``min_gain``, it makes no held-out channel worse by more than ``max_loss`` of
+   exceeds ``min_gain`` (for a response extension, on a channel the model it extends gets
+   wrong: held-out NRP x input coherence at or above ``systematic_floor``), it makes no
+   held-out channel worse by more than ``max_loss`` of
    its error (unless that worsening is under ``max_loss`` of what the hypothesis gains on
    its best channel, in the same units) and, for a response extension, it explains the
    systematic residual on the channel it gains on (held-out error times the residual's
@@ -28,7 +30,8 @@ the cause, the extended model and the gain.
    fitted at a size every vehicle or track has (a carbody bending above 12 Hz, a track
    stiffer than 80 MN/m per wheelset), or one for what every vehicle has at any size
    (equipment on its mounts, the load of each journey), is a property, kept and reported,
-   not a cause. The causes, joined by ``+``, are the answer; without one, ``none`` when
+   not a cause; a property is kept when it gains enough and loses nothing even if it leaves
+   systematic residual, which the next step must then explain. The causes, joined by ``+``, are the answer; without one, ``none`` when
    what is left shows nothing systematic (residual input-coherence, or the coherent part
    of the held-out error when it is within a model's accuracy, peaks and lines all below
    their thresholds once the properties are in the model), else ``unexplained`` with the

@@ -17,7 +17,9 @@ A passing hypothesis whose fitted size is what every vehicle or track has (a car
 bending above the catalogue's range, a track stiffer than its soft track:
 :attr:`.extensions.Extension.normal_above`), or whose extension is what every vehicle has
 at any size (:attr:`.extensions.Extension.always_normal`), is a *property*: kept in the model, so that
-what it explains is not blamed on anything else, and reported, but not a cause.
+what it explains is not blamed on anything else, and reported, but not a cause. A
+property is kept when it gains enough and loses nothing, even when it leaves systematic
+residual (it is not the answer; what it leaves is for the next step), :func:`kept`.
 """
 from __future__ import annotations
 
