@@ -205,6 +205,9 @@ class ResponseProblem:
         self.make = make or (lambda v: (CarExtras(), SensorModel()))
         self.nb = len(self.bounds)
         self.n_ext = len(ext_params)
+        # a run's load parameter (its index in x) -> the load group it alone moves
+        self.owner = {i: g for g, run in enumerate(self.runs) for i, r in enumerate(self.ranges)
+                      if r.name == _load_name(run)}
         self.count = 0
 
     def unpack(self, x):
@@ -244,8 +247,7 @@ class ResponseProblem:
         steps = 1e-6 * np.maximum(1.0, np.abs(x[idx]))
         steps = np.where(x[idx] + steps > self.hi[idx], -steps, steps)
         groups = self.cars(x)
-        owner = {self.ranges.index(r): g for g, run in enumerate(self.runs)
-                 for r in self.ranges if r.name == _load_name(run)}
+        owner = self.owner
         shifted = []
         for i, h in zip(idx, steps):
             xs = x.copy()
