@@ -321,6 +321,7 @@ def test_hidden_effect_is_named_and_its_extension_gains(tmp_path, name, end):
     diag = diagnose_in_service(open_campaign(root))
     assert diag.cause == name, diag.summary
     assert diag.best.gain >= 0.3
+    assert all(h.gain <= 1.0 for h in diag.hypotheses)  # an error cannot fall by more than all of it
     p = diag.best.parameters
     if name == "carbody_bending":
         assert p["bending_hz"] == pytest.approx(magnitude, rel=0.03)
