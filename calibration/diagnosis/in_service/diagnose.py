@@ -31,11 +31,11 @@ the cause, the extended model and the gain.
    stiffer than 80 MN/m per wheelset), or one for what every vehicle has at any size
    (equipment on its mounts, the load of each journey), is a property, kept and reported,
    not a cause; a property is kept when it gains enough and loses nothing even if it leaves
-   systematic residual, which the next step must then explain. The causes, joined by ``+``, are the answer; without one, ``none`` when
-   what is left shows nothing systematic (residual input-coherence, or the coherent part
-   of the held-out error when it is within a model's accuracy, peaks and lines all below
-   their thresholds once the properties are in the model), else ``unexplained`` with the
-   evidence.
+   systematic residual, which the next step must then explain. The causes, joined by
+   ``+``, are the answer; without one, ``none`` when what is left shows nothing systematic
+   (residual input-coherence, or the coherent part of the held-out error when it is within
+   a model's accuracy, peaks and lines all below their thresholds once the properties are
+   in the model), else ``unexplained`` with the evidence.
 6. **Detectability** (:mod:`.detectability`): for every extension, the weakest effect this
    campaign could have named, predicted at the baseline fit; ``none`` lists them ("no
    effect above these sizes") and names effects the sensor set cannot observe.
