@@ -16,18 +16,21 @@ import numpy as np
 
 from calibration.data.campaign import read_track_file
 from calibration.data.errors import InputError
-from calibration.models.car2d import seed_car_only
+from calibration.models.car2d import CarExtras, carbody_centre, extras_from_json, sensor_model_from_json
 from calibration.models.parameters import CarParameters
 
 from .build import BuiltFMU, build_fmu
 from .variables import CAR_BODIES, ModelSpec, TrackTooShort, car2d_spec
 
 
-def car_sensors(campaign, p: CarParameters) -> tuple:
+def car_sensors(campaign, p: CarParameters, extras: CarExtras | None = None, bogie_dx: float = 0.0) -> tuple:
     """(name, body, dx) of the campaign's vertical accelerometers on the car's bodies, dx
-    from the body centre (carbody at 0, bogie 1 at +L_v, bogie 2 at -L_v)."""
-    centre = {"carbody": 0.0, "bogie1": p.L_v, "bogie2": -p.L_v}
-    return tuple((s.name, s.body, float(s.position[0]) - centre[s.body]) for s in campaign.meta.sensors
+    from the body centre (the carbody's centre of mass, bogie 1 at +L_v, bogie 2 at -L_v);
+    the bogies' sensors ``bogie_dx`` [m] ahead of their declared places (a calibration's
+    ``sensor_model``)."""
+    centre = {"carbody": carbody_centre(p, extras), "bogie1": p.L_v, "bogie2": -p.L_v}
+    return tuple((s.name, s.body, float(s.position[0]) - centre[s.body] + (bogie_dx if s.body != "carbody" else 0.0))
+                 for s in campaign.meta.sensors
                  if s.quantity == "acceleration" and s.direction == "z" and s.body in CAR_BODIES)
 
 
@@ -55,14 +58,20 @@ def _track_csv(track: Path, folder: Path) -> Path:
 
 def car2d_fmu_spec(calibration: dict, *, track: Path | None = None, campaign=None,
                    cutoff_hz: float | None = None) -> ModelSpec:
-    """The car FMU of a car2d calibration: its parameters as tunable parameters, an output per
-    vertical accelerometer of ``campaign`` on the car's bodies (when given)."""
+    """The car FMU of a car2d calibration: its parameters (and an extended model's ``extras``)
+    as tunable parameters, an output per vertical accelerometer of ``campaign`` on the car's
+    bodies (when given; at the places the calibration's ``sensor_model`` puts them)."""
     if cutoff_hz is not None:
         raise InputError("--cutoff-hz is for the box model", key="--cutoff-hz")
-    seed_car_only(calibration, "the car FMU")  # its C has the seed's bodies only
     p = CarParameters.from_mapping(calibration["parameters"])  # names, finiteness and physical ranges checked here
-    sensors = car_sensors(campaign, p) if campaign is not None else ()
-    return car2d_spec(p.as_dict(), track=track, sensors=sensors)
+    try:
+        extras = extras_from_json(calibration.get("extras") or {})
+        bogie_dx, _ = sensor_model_from_json(calibration.get("sensor_model"))
+        carbody_centre(p, extras)  # hung bodies leaving the carbody a mass and inertia
+    except ValueError as e:
+        raise InputError(str(e), key="extras / sensor_model") from None
+    sensors = car_sensors(campaign, p, extras, bogie_dx) if campaign is not None else ()
+    return car2d_spec(p.as_dict(), track=track, sensors=sensors, extras=extras)
 
 
 def box_fmu_spec(calibration: dict, *, track: Path | None = None, campaign=None,

@@ -11,7 +11,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.signal
 
-from calibration.models.car2d import (GRAVITY, Output, build_car, state_space, static_deflection,
+from calibration.models.car2d import (GRAVITY, CarExtras, Output, build_car, state_space, static_deflection,
                                       wheelset_positions)
 from calibration.models.parameters import CarParameters
 from calibration.models.simulate import ModalSimulator
@@ -31,15 +31,17 @@ def rail_inputs(p: CarParameters, profile: Profile, speed: float, t: np.ndarray,
 
 
 def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: float, t: np.ndarray, *,
-                  start: float = 0.0, substeps: int = 20) -> dict[str, np.ndarray]:
+                  start: float = 0.0, substeps: int = 20, extras: CarExtras | None = None) -> dict[str, np.ndarray]:
     """Every output of the car FMU ``spec`` at the times ``t`` (uniform), from the car model
-    started in static equilibrium, inputs evaluated ``substeps`` times per interval of t."""
+    (with ``extras``, an extended one) started in static equilibrium, inputs evaluated
+    ``substeps`` times per interval of t."""
     t = np.asarray(t, float)
     dt = (t[1] - t[0]) / substeps
     tf = t[0] + dt * np.arange((len(t) - 1) * substeps + 1)
     z, dz, ddz, _ = rail_inputs(p, profile, speed, tf, start)
-    asm = build_car(p)
+    asm = build_car(p, extras=extras)
     xw = wheelset_positions(p)
+    free = "wheelset1_z" in asm.dofs  # wheelsets on a flexible track
     outs = []
     for v in spec.outputs:
         kind, body, dx, wheel = v.output
@@ -50,9 +52,11 @@ def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: fl
         elif kind == OUT_PITCH_RATE:
             outs.append(Output(v.name, "pitch_rate", CAR_BODIES[body]))
         elif kind == OUT_CONTACT:
-            bogie = f"bogie{1 + wheel // 2}"
-            outs.append(Output(f"{v.name}:disp", "displacement", bogie, xw[wheel]))
-            outs.append(Output(f"{v.name}:vel", "velocity", bogie, xw[wheel]))
+            for part, x_body in ((f"bogie{1 + wheel // 2}", "bogie"), (f"wheelset{wheel + 1}", "wheelset")):
+                if x_body == "wheelset" and not free:
+                    continue
+                outs += [Output(f"{v.name}:{x_body}:{q}", q, part, xw[wheel])
+                         for q in ("displacement", "velocity", "acceleration")]
         else:
             raise ValueError(f"{v.name}: unknown output kind {kind}")
     ss = state_space(asm, outs)
@@ -67,9 +71,15 @@ def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: fl
             result[v.name] = y[:, col[v.name]]
             continue
         g = asm.point_row(f"bogie{1 + wheel // 2}", xw[wheel])
-        primary = -p.k_p * (y[:, col[f"{v.name}:disp"]] + g @ q_static - z[:, wheel]) \
-            - p.c_p * (y[:, col[f"{v.name}:vel"]] - dz[:, wheel])
-        result[v.name] = primary + p.m_w * (GRAVITY + ddz[:, wheel])
+        if free:  # the wheelset's own level, its static deflection and its acceleration
+            gw = asm.point_row(f"wheelset{wheel + 1}", xw[wheel])
+            w, dw, ddw = (y[:, col[f"{v.name}:wheelset:{q}"]] for q in ("displacement", "velocity", "acceleration"))
+            g = g - gw
+        else:
+            w, dw, ddw = z[:, wheel], dz[:, wheel], ddz[:, wheel]
+        primary = -p.k_p * (y[:, col[f"{v.name}:bogie:displacement"]] + g @ q_static - w) \
+            - p.c_p * (y[:, col[f"{v.name}:bogie:velocity"]] - dw)
+        result[v.name] = primary + p.m_w * (GRAVITY + ddw)
     return result
 
 

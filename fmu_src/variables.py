@@ -27,6 +27,7 @@ UNITS = {
     "kg.m2": {"kg": 1, "m": 2},
     "N/m": {"kg": 1, "s": -2},
     "N.s/m": {"kg": 1, "s": -1},
+    "Hz": {"s": -1},
 }
 _SPEC_UNIT = {"kg": "kg", "kg m^2": "kg.m2", "N/m": "N/m", "N s/m": "N.s/m", "m": "m"}
 
@@ -151,11 +152,12 @@ def standalone_variables(track_file: str | None, track_start: float = 0.0) -> li
 
 
 def car2d_variables(parameters: dict[str, float], *, track_file: str | None = None,
-                    sensors: tuple = (), track_start: float = 0.0) -> tuple[Variable, ...]:
+                    sensors: tuple = (), track_start: float = 0.0, extras: tuple = ()) -> tuple[Variable, ...]:
     """The car FMU's variables: ``parameters`` (calibrated values, SI) become the tunable
-    parameters' start values; ``sensors`` adds an acceleration output per calibrated sensor
-    position, as (name, body, dx [m] from the body centre); ``track_file`` (a name in
-    resources/) makes stand-alone running the default, from ``track_start`` [m]."""
+    parameters' start values, ``extras`` (:func:`extras_variables`) follow them; ``sensors``
+    adds an acceleration output per calibrated sensor position, as (name, body, dx [m] from
+    the body centre); ``track_file`` (a name in resources/) makes stand-alone running the
+    default, from ``track_start`` [m]."""
     missing = sorted(set(CAR_PARAMETER_SPECS) - set(parameters))
     if missing:
         raise ValueError(f"the calibration lacks car parameter(s) {', '.join(missing)}")
@@ -163,6 +165,7 @@ def car2d_variables(parameters: dict[str, float], *, track_file: str | None = No
     for name, spec in CAR_PARAMETER_SPECS.items():
         v.append(Variable(name, "Real", "parameter", "tunable", spec.description, _SPEC_UNIT[spec.unit],
                           float(parameters[name])))
+    v += list(extras)
     v += rail_inputs()
     for b, body in enumerate(CAR_BODIES):
         v.append(Variable(f"{body}_acc_z", "Real", "output", "continuous",
@@ -181,6 +184,61 @@ def car2d_variables(parameters: dict[str, float], *, track_file: str | None = No
     return _ordered(v)
 
 
+#: The extended model's additions as FMU parameters: (calibration file's extras name, unit,
+#: description), by the model_config.h switch that brings them in (car2d/model.c).
+EXTRAS_VARIABLES = {
+    "CAR_COG": (("cog_offset", "m", "carbody centre of mass ahead (+) of its geometric centre"),),
+    "CAR_BENDING": (
+        ("bending_hz", "Hz", "carbody first vertical bending, free-free natural frequency"),
+        ("bending_damping", None, "carbody bending modal damping ratio"),
+        ("bending_mass_ratio", None, "carbody bending generalised mass / m_v (shape 1 at the ends)"),
+        ("bending_node", None, "carbody bending nodes at +- this fraction of the half-length"),
+        ("carbody_length", "m", "carbody length the bending shape spans")),
+    "CAR_RESERVOIR": (
+        ("reservoir_ratio", None, "air-spring reservoir branch stiffness / k_s"),
+        ("reservoir_corner_hz", "Hz", "reservoir orifice corner frequency k_r / (2 pi c_o)"),
+        ("node_mass", "kg", "mass of the node between reservoir stiffness and orifice")),
+    "CAR_TRACK": (
+        ("track_stiffness", "N/m", "track stiffness under each wheelset"),
+        ("track_damping_ratio", None, "track damping ratio under each wheelset"),
+        ("track_mass", "kg", "rail and sleeper mass moving with each wheelset")),
+}
+HUNG_VARIABLES = (("mass", "kg", "mass"), ("x", "m", "position ahead of the carbody's middle"),
+                  ("mount_stiffness", "N/m", "mount stiffness"), ("mount_damping", "N.s/m", "mount damping"))
+
+
+def extras_variables(extras) -> tuple[list[Variable], dict, int]:
+    """The FMU parameters, model_config.h switches and extra coordinates of an extended car
+    (:class:`~calibration.models.car2d.CarExtras`): each addition's fields as tunable
+    parameters named as in the calibration file's ``extras``; a hung body's as
+    ``<name>_mass``, ``<name>_x``, ``<name>_mount_stiffness``, ``<name>_mount_damping``."""
+    from calibration.models.assembly import UNIFORM_BEAM_NODE
+    from calibration.models.car2d import extras_to_json
+
+    present = {"CAR_COG": extras.cog_offset != 0.0, "CAR_BENDING": extras.bending_hz is not None,
+               "CAR_RESERVOIR": extras.reservoir_ratio > 0, "CAR_TRACK": extras.track_stiffness is not None}
+    value = {"bending_node": UNIFORM_BEAM_NODE if extras.bending_node is None else extras.bending_node}
+    variables, defines = [], {}
+    for switch, fields in EXTRAS_VARIABLES.items():
+        defines[switch] = "1" if present[switch] else "0"
+        if present[switch]:
+            variables += [Variable(name, "Real", "parameter", "tunable", description, unit,
+                                   float(value.get(name, getattr(extras, name)))) for name, unit, description in fields]
+    hung = extras_to_json(extras).get("hung_bodies", [])
+    for h in hung:
+        variables += [Variable(f"{h['name']}_{key}", "Real", "parameter", "tunable",
+                               f"{description} of the body {h['name']} hung under the carbody", unit, float(h[key]))
+                      for key, unit, description in HUNG_VARIABLES]
+    defines["CAR_N_HUNG"] = str(len(hung))
+    defines["CAR_HUNG_IN_M_V"] = "1" if extras.hung_in_m_v else "0"
+    if hung:
+        defines["CAR_HUNG_VRS"] = "{" + ", ".join(
+            "{" + ", ".join(f"VR_{h['name']}_{key}" for key, _, _ in HUNG_VARIABLES) + "}" for h in hung) + "}"
+    coordinates = int(present["CAR_BENDING"]) + 2 * int(present["CAR_RESERVOIR"]) + 4 * int(present["CAR_TRACK"]) \
+        + len(hung)
+    return variables, defines, coordinates
+
+
 def car_wheelset_offsets(parameters: dict[str, float]) -> tuple[float, ...]:
     """[m] of wheelsets 1..4 ahead of the carbody centre, as car2d/model.c's ``geometry``
     computes them."""
@@ -188,18 +246,23 @@ def car_wheelset_offsets(parameters: dict[str, float]) -> tuple[float, ...]:
     return (Lv + Lb, Lv - Lb, -Lv + Lb, -Lv - Lb)
 
 
-def car2d_spec(parameters: dict[str, float], *, track: str | None = None, sensors: tuple = ()) -> ModelSpec:
+def car2d_spec(parameters: dict[str, float], *, track: str | None = None, sensors: tuple = (),
+               extras=None) -> ModelSpec:
     """The car FMU; ``track``: a track profile CSV to ship in resources/ for stand-alone runs
-    (the default ``track_start`` puts the car on its start)."""
-    from calibration.models.car2d import GRAVITY
+    (the default ``track_start`` puts the car on its start); ``extras``: the extended model's
+    additions (:class:`~calibration.models.car2d.CarExtras`), None for the seed's car."""
+    from calibration.models.car2d import GRAVITY, CarExtras
 
     resources = {"track.csv": track} if track else {}
     start = default_track_start(track, car_wheelset_offsets(parameters)) if track else 0.0
+    added, defines, coordinates = extras_variables(CarExtras() if extras is None else extras)
     variables = car2d_variables(parameters, track_file="track.csv" if track else None, sensors=sensors,
-                                track_start=start)
-    return ModelSpec("railcal_car2d", "2D railway car (carbody, two bogies, four wheelsets on the rail), "
-                     "calibrated by railcal", "car2d", variables, n_states=12, standalone=True,
-                     defines={"MODEL_GRAVITY": repr(GRAVITY)}, resources=resources)
+                                track_start=start, extras=added)
+    description = "2D railway car (carbody, two bogies, four wheelsets on the rail), calibrated by railcal"
+    if added:
+        description += f", extended by its diagnosis ({', '.join(v.name for v in added)})"
+    return ModelSpec("railcal_car2d", description, "car2d", variables, n_states=2 * (6 + coordinates),
+                     standalone=True, defines={"MODEL_GRAVITY": repr(GRAVITY), **defines}, resources=resources)
 
 
 def trivial_spec(n_outputs: int = 1) -> ModelSpec:

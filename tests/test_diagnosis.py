@@ -407,12 +407,16 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
     validated = tmp_path / "val.json"
     assert main(["validate", str(root), "--calibration", str(out), "--out", str(validated), "--quiet"]) == 0
     capsys.readouterr()
-    for command in (["export-fmu", "--calibration", str(out), "--out", str(tmp_path / "x.fmu")],
-                    ["crosscheck", "--calibration", str(out), "--out", str(tmp_path / "x.json"), "--no-fmu"]):
+    assert main(["export-fmu", "--calibration", str(out), "--out", str(tmp_path / "x.fmu"), "--quiet"]) == 0
+    import fmpy
+
+    declared = {v.name: v for v in fmpy.read_model_description(str(tmp_path / "x.fmu")).modelVariables}
+    assert float(declared["cog_offset"].start) == result["extras"]["cog_offset"]
+    for command in (["crosscheck", "--calibration", str(out), "--out", str(tmp_path / "x.json"), "--no-fmu"],):
         assert main([*command, "--quiet"]) == 2
         err = capsys.readouterr().err
         assert "cog_offset" in err and "extras" in err
-        assert not (tmp_path / "x.fmu").exists() and not (tmp_path / "x.json").exists()
+        assert not (tmp_path / "x.json").exists()
     assert result["baseline"]["start"] == truth["parameters"] and str(cal) in result["baseline"]["source"]
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])

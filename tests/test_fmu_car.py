@@ -384,3 +384,80 @@ def test_export_with_a_campaign_adds_its_accelerometers_as_outputs_at_their_posi
                         start=START)
     assert nrmse(res["sensor_bogie1_acc_z"], ref["sensor_bogie1_acc_z"]) < 1e-3
     assert nrmse(res["sensor_bogie1_acc_z"], res["bogie1_acc_z"]) > 0.05  # the pitch adds at 0.5 m
+
+
+# ------------------------------------------------------------------ the extended model (a diagnosis's calibration)
+
+def _extended():
+    """Every addition a diagnosis can make, at once: centre of mass, bending, reservoirs,
+    flexible track and a body hung under the carbody (part of m_v)."""
+    from calibration.models.car2d import CarExtras, hung_body
+
+    k = 1500.0 * (2 * np.pi * 8.0) ** 2
+    body, mount = hung_body("equipment", 1500.0, -2.3, k, 2 * 0.1 * np.sqrt(k * 1500.0))
+    return CarExtras(cog_offset=0.8, bending_hz=9.0, bending_node=0.5, reservoir_ratio=0.6, track_stiffness=60e6,
+                     bodies=(body,), elements=(mount,), hung_in_m_v=True)
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_the_extended_model_fmu_matches_the_extended_python_model_and_its_additions_are_tunable(tmp_path, car_track,
+                                                                                                version):
+    """The FMU of a diagnosis's extended car: each addition a tunable parameter named as in
+    the calibration file; its outputs (a floor sensor 8 m ahead included, where the bending
+    shows) follow the extended Python model, also after a parameter is changed."""
+    from dataclasses import replace
+
+    from fmu_src.build import build_fmu
+    from fmu_src.variables import car2d_spec
+
+    extras = _extended()
+    sensors = (("floor_front", "carbody", 8.0),)
+    spec = car2d_spec(CAR.as_dict(), track=car_track[0], sensors=sensors, extras=extras)
+    assert spec.n_states == 2 * (6 + 1 + 2 + 4 + 1)
+    built = build_fmu(spec, version, tmp_path / "ext.fmu", platforms=("linux64",))
+    assert validate_fmu(str(built.path)) == []
+    v = {x.name: x for x in fmpy.read_model_description(str(built.path)).modelVariables}
+    for name in ("cog_offset", "bending_hz", "bending_node", "reservoir_ratio", "track_stiffness", "equipment_mass",
+                 "equipment_mount_stiffness"):
+        assert v[name].causality == "parameter" and v[name].variability == "tunable"
+    assert float(v["bending_hz"].start) == 9.0 and float(v["equipment_x"].start) == -2.3
+    outputs = SPEC_OUTPUTS + ["sensor_floor_front"]
+    for tuned, start in ((extras, {}), (replace(extras, bending_hz=11.0, track_stiffness=90e6),
+                                        {"bending_hz": 11.0, "track_stiffness": 90e6})):
+        res = fmpy.simulate_fmu(str(built.path), stop_time=3.0, output_interval=1e-3, step_size=1e-3, output=outputs,
+                                start_values={"speed": SPEED, "track_start": START, **start})
+        ref = car_reference(spec, CAR, car_track[1], SPEED, res["time"], start=START, extras=tuned)
+        errors = {n: nrmse(res[n], ref[n]) for n in outputs}
+        assert max(errors.values()) < 1e-3, errors
+    # the wheels carry the car's weight: the hung body is part of m_v, the reservoir nodes
+    # add, the track's mass is below the wheels
+    weight = (CAR.m_v + 2 * (CAR.m_b + extras.node_mass) + 4 * CAR.m_w) * 9.80665
+    assert sum(np.mean(res[f"contact_force_{j}"]) for j in range(1, 5)) == pytest.approx(weight, rel=1e-3)
+    res, log = _run_logged(built.path, stop_time=0.1, start_values={"bending_node": -0.5})
+    assert res is None and "bending_node" in " ".join(log), log
+
+
+def test_export_fmu_takes_a_diagnosis_file_and_refuses_extras_it_cannot_build(tmp_path, car_track, capsys):
+    import json
+
+    from calibration.models.car2d import extras_to_json
+    from railcal.cli import main
+
+    cal = {"model": "car2d", "parameters": CAR.as_dict(), "extras": extras_to_json(_extended()),
+           "sensor_model": {"bogie_dx": 0.3, "gyro_gain": 0.98}}
+    good = tmp_path / "diag.json"
+    good.write_text(json.dumps(cal))
+    out = tmp_path / "ext.fmu"
+    assert main(["export-fmu", "--calibration", str(good), "--track", str(car_track[0]), "--out", str(out),
+                 "--quiet"]) == 0
+    names = {x.name for x in fmpy.read_model_description(str(out)).modelVariables}
+    assert {"cog_offset", "bending_mass_ratio", "node_mass", "track_mass", "equipment_mount_damping"} <= names
+    for key, bad, word in (("extras", {**cal["extras"], "bending_hz": "fast"}, "bending_hz"),
+                           ("extras", {**cal["extras"], "hung_bodies": [{**cal["extras"]["hung_bodies"][0],
+                                                                          "mass": 40000.0}]}, "hung bodies"),
+                           ("sensor_model", {"bogie_dx": None}, "bogie_dx")):
+        path = tmp_path / "bad.json"
+        path.write_text(json.dumps({**cal, key: bad}))
+        assert main(["export-fmu", "--calibration", str(path), "--out", str(tmp_path / "x.fmu"), "--quiet"]) == 2
+        assert word in capsys.readouterr().err
+        assert not (tmp_path / "x.fmu").exists()

@@ -208,6 +208,13 @@ def _carbody_rest(p: CarParameters, ex: CarExtras) -> tuple[float, float, float]
     return m, x, J
 
 
+def carbody_centre(p: CarParameters, extras: CarExtras | None = None) -> float:
+    """[m] The rigid carbody's centre of mass in the vehicle frame: its body's ``x``, where
+    its outputs' centre and its bending shape's middle are (ValueError when hung bodies leave
+    it no positive mass or inertia)."""
+    return _carbody_rest(p, CarExtras() if extras is None else extras)[1]
+
+
 def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1.0e9,
               c_contact: float = 0.0, extras: CarExtras | None = None) -> Assembly:
     """Assemble the 2D car from rigid bodies and spring-dampers (plus ``extras``)."""
