@@ -7,7 +7,8 @@ from pathlib import Path
 
 from calibration.data.errors import InputError
 from calibration.data.outputs import write_result
-from calibration.models.car2d import CarExtras, extras_from_json, seed_car_only, sensor_model_from_json
+from calibration.models.car2d import (CarExtras, carbody_centre, extras_from_json, extras_to_json,
+                                      sensor_model_from_json)
 from calibration.models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 
 from .common import campaign_of, names, progress_for, read_identification
@@ -144,11 +145,17 @@ def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tu
     """The exudyn cross-check over (distance, level) [m]: the report and its summary."""
     from .crosscheck import crosscheck_car
 
-    seed_car_only(calibration, "the exudyn reference", Path(args.calibration))
-    report = crosscheck_car(parameters(calibration, args.calibration), distance, level, speed=args.speed,
-                            duration=args.duration, with_fmu=not args.no_fmu, plot=png)
+    p, added = parameters(calibration, args.calibration), extras(calibration, args.calibration)
+    try:
+        carbody_centre(p, added)
+    except ValueError as e:
+        raise InputError(str(e), path=Path(args.calibration), key="extras") from None
+    report = crosscheck_car(p, distance, level, speed=args.speed, duration=args.duration, with_fmu=not args.no_fmu,
+                            plot=png, extras=added)
     e, t = report["eigen"], report["time"]
-    return report, (f"exudyn vs railcal: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped "
+    shown = sorted(extras_to_json(added))
+    extended = f" (extended model: {', '.join(shown)})" if shown else ""
+    return report, (f"exudyn vs railcal{extended}: eigenfrequencies {e['undamped']['max_relative_error']:.1e}, damped "
                     f"eigenvalues {e['damped']['max_relative_error']:.1e}; {t['duration_s']:g} s at "
                     f"{t['speed_m_s']:g} m/s worst NRMSE {t['worst_nrmse']:.1e} (exudyn, railcal"
                     f"{'' if args.no_fmu else ', FMU'})")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.models.car2d import wheelset_positions
+from calibration.models.car2d import CarExtras, wheelset_positions
 from calibration.models.parameters import CarParameters
 from fmu_src.reference import car_reference, nrmse, spline_profile
 
@@ -27,11 +27,12 @@ TOLERANCES = {"undamped_rel": 1e-6, "damped_rel": 1e-4, "nrmse": 1e-3}
 OUTPUT_INTERVAL = 1e-3  # [s]
 
 
-def _eigen(p: CarParameters) -> dict:
+def _eigen(p: CarParameters, extras: CarExtras | None) -> dict:
     out = {}
     for kind, damped, tol in (("undamped", False, TOLERANCES["undamped_rel"]),
                               ("damped", True, TOLERANCES["damped_rel"])):
-        ours, theirs = railcal_eigenvalues(p, damped=damped), exudyn_eigenvalues(p, damped=damped)
+        ours = railcal_eigenvalues(p, damped=damped, extras=extras)
+        theirs = exudyn_eigenvalues(p, damped=damped, extras=extras)
         err = eigen_errors(ours, theirs)
         fmt = (lambda v: float(v)) if not damped else (lambda v: [float(v.real), float(v.imag)])
         out[kind] = {"railcal": [fmt(v) for v in ours],
@@ -41,7 +42,8 @@ def _eigen(p: CarParameters) -> dict:
     return out
 
 
-def _fmu_run(p: CarParameters, distance, level, speed, start, duration, workdir: Path) -> dict:
+def _fmu_run(p: CarParameters, extras: CarExtras | None, distance, level, speed, start, duration,
+             workdir: Path) -> dict:
     import fmpy
 
     from fmu_src.build import build_fmu
@@ -50,7 +52,8 @@ def _fmu_run(p: CarParameters, distance, level, speed, start, duration, workdir:
     track = workdir / "track.csv"
     np.savetxt(track, np.column_stack([distance, level]), delimiter=",", header="distance,level", comments="",
                fmt="%.17g")
-    built = build_fmu(car2d_spec(p.as_dict(), track=track), 2, workdir / "car.fmu", platforms=("linux64",))
+    built = build_fmu(car2d_spec(p.as_dict(), track=track, extras=extras), 2, workdir / "car.fmu",
+                      platforms=("linux64",))
     res = fmpy.simulate_fmu(str(built.path), stop_time=duration, output_interval=OUTPUT_INTERVAL,
                             step_size=OUTPUT_INTERVAL, output=list(OUTPUTS),
                             start_values={"speed": speed, "track_start": start})
@@ -58,9 +61,11 @@ def _fmu_run(p: CarParameters, distance, level, speed, start, duration, workdir:
 
 
 def crosscheck_car(p: CarParameters, distance: np.ndarray, level: np.ndarray, *, speed: float = 40.0,
-                   duration: float = 10.0, with_fmu: bool = True, plot: Path | None = None) -> dict:
-    """The whole cross-check over the track (distance, level) [m]; the car starts with its
-    last wheelset 5 m into the track, and ``duration`` is cut to the track's length."""
+                   duration: float = 10.0, with_fmu: bool = True, plot: Path | None = None,
+                   extras: CarExtras | None = None) -> dict:
+    """The whole cross-check over the track (distance, level) [m] of the car (with
+    ``extras``, the extended model of a diagnosis); the car starts with its last wheelset
+    5 m into the track, and ``duration`` is cut to the track's length."""
     distance, level = np.asarray(distance, float), np.asarray(level, float)
     xw = wheelset_positions(p)
     start = float(distance[0] - xw.min() + 5.0)
@@ -69,18 +74,19 @@ def crosscheck_car(p: CarParameters, distance: np.ndarray, level: np.ndarray, *,
     if duration <= 0:
         raise ValueError(f"the track ({distance[0]:.1f}-{distance[-1]:.1f} m) is too short for the car at "
                          f"{speed} m/s")
-    report = {"eigen": _eigen(p)}
+    report = {"eigen": _eigen(p, extras)}
     t0 = time.perf_counter()
     res = simulate_car_exudyn(p, RailInput(distance, level, speed, start), duration=duration,
-                              output_interval=OUTPUT_INTERVAL)
+                              output_interval=OUTPUT_INTERVAL, extras=extras)
     from fmu_src.variables import car2d_spec
 
-    ref = car_reference(car2d_spec(p.as_dict()), p, spline_profile(distance, level), speed, res.t, start=start)
+    ref = car_reference(car2d_spec(p.as_dict(), extras=extras), p, spline_profile(distance, level), speed, res.t,
+                        start=start, extras=extras)
     wall = time.perf_counter() - t0
     fmu = None
     if with_fmu:
         with tempfile.TemporaryDirectory(prefix="railcal_crosscheck_") as tmp:
-            fmu = _fmu_run(p, distance, level, speed, start, duration, Path(tmp))
+            fmu = _fmu_run(p, extras, distance, level, speed, start, duration, Path(tmp))
     rows, worst = {}, 0.0
     for n in OUTPUTS:
         row = {"rms": float(np.std(ref[n])), "exudyn_vs_railcal": nrmse(res.outputs[n], ref[n])}

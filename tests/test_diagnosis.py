@@ -402,7 +402,7 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
         elif h["kind"] != "response":
             assert h["interval_95"] is None
     assert any(h["name"] == "cog_offset" and h["interval_95"] == cause["interval_95"] for h in result["hypotheses"])
-    # the file is the extended model's calibration: validate takes it, the FMU and exudyn refuse what they lack
+    # the file is the extended model's calibration: validate, export-fmu and crosscheck take it
     assert result["model"] == "car2d" and result["extras"]["cog_offset"] == pytest.approx(cause["parameters"]["cog_offset"])
     validated = tmp_path / "val.json"
     assert main(["validate", str(root), "--calibration", str(out), "--out", str(validated), "--quiet"]) == 0
@@ -412,11 +412,12 @@ def test_diagnose_command_writes_cause_evidence_extension_gain_and_plots(tmp_pat
 
     declared = {v.name: v for v in fmpy.read_model_description(str(tmp_path / "x.fmu")).modelVariables}
     assert float(declared["cog_offset"].start) == result["extras"]["cog_offset"]
-    for command in (["crosscheck", "--calibration", str(out), "--out", str(tmp_path / "x.json"), "--no-fmu"],):
-        assert main([*command, "--quiet"]) == 2
-        err = capsys.readouterr().err
-        assert "cog_offset" in err and "extras" in err
-        assert not (tmp_path / "x.json").exists()
+    assert main(["crosscheck", "--calibration", str(out), "--duration", "2", "--out", str(tmp_path / "x.json"),
+                 "--quiet"]) == 0
+    assert "extended model: cog_offset" in capsys.readouterr().out
+    check = json.loads((tmp_path / "x.json").read_text())
+    assert check["verdict"] == "pass" and check["eigen"]["undamped"]["max_relative_error"] <= 1e-6
+    assert "exudyn_vs_fmu" in check["time"]["outputs"]["carbody_acc_z"]
     assert result["baseline"]["start"] == truth["parameters"] and str(cal) in result["baseline"]["source"]
     assert result["cause"] == "cog_offset"
     assert all((tmp_path / p).exists() or (out.parent / p).exists() for p in result["plots"])

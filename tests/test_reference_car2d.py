@@ -4,21 +4,59 @@ and railcal's response over a track (NRMSE <= 1e-3 per output), and the remainin
 difference must be exudyn's time-integration error.
 
 The 10 s figure and its wall time are printed by ``scripts/crosscheck_car.py``; here the
-runs are 1-2 s."""
+runs are 1-2 s.
+
+The extended car (``CarExtras``: centre of mass offset, carbody bending, air-spring
+reservoirs, flexible track, hung equipment) is held to the same tolerances, each addition
+alone and all together (``EXTENDED``)."""
+from dataclasses import replace
+
 import exudyn as exu
 import numpy as np
 import pytest
 from conftest import CAR_FMU_SPEED as SPEED
 from conftest import CAR_FMU_START as START
 
+from calibration.models.car2d import CarExtras, Output, build_car, hung_body, state_space
+from calibration.models.simulate import ModalSimulator
 from calibration.models.vehicles import INTERCITY_TRAILER as CAR
 from calibration.models.vehicles import VEHICLES
-from fmu_src.reference import car_reference, nrmse, smooth_profile
+from fmu_src.reference import car_reference, nrmse, rail_inputs, smooth_profile
 from fmu_src.variables import car2d_spec
-from reference_models.car2d import (BODIES, OUTPUTS, IntegratorSettings, RailInput, build_car_exudyn, eigen_errors,
-                                    exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn)
+from reference_models.car2d import (BODIES, OUTPUTS, IntegratorSettings, RailInput, build_car_exudyn, carbody_rest,
+                                    eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn)
 
 VEHICLE_NAMES = sorted(VEHICLES)
+
+
+def _equipment(mass=1500.0, x=-2.3, hz=8.0, zeta=0.1):
+    """A tank of ``mass`` [kg] hung under the carbody at ``x`` [m] on a ``hz`` mount."""
+    w = 2 * np.pi * hz
+    return hung_body("tank", mass, x, mass * w * w, 2 * zeta * mass * w)
+
+
+_TANK, _MOUNT = _equipment()
+#: Each addition of railcal's extended car alone, and all together ("all").
+EXTENDED = {
+    "cog": CarExtras(cog_offset=0.8),
+    "bending": CarExtras(bending_hz=9.0, bending_node=0.5),
+    "reservoir": CarExtras(reservoir_ratio=0.6, reservoir_corner_hz=2.5),
+    "track": CarExtras(track_stiffness=60e6),
+    "hung": CarExtras(bodies=(_TANK,), elements=(_MOUNT,)),
+    "hung_in_m_v": CarExtras(bodies=(_TANK,), elements=(_MOUNT,), hung_in_m_v=True),
+    "all": CarExtras(cog_offset=0.8, bending_hz=9.0, bending_node=0.5, reservoir_ratio=0.6, reservoir_corner_hz=2.5,
+                     track_stiffness=60e6, bodies=(_TANK,), elements=(_MOUNT,), hung_in_m_v=True),
+}
+#: The same, each addition changed by 10 %: what the tolerances must be able to see.
+PERTURBED = {
+    "cog": replace(EXTENDED["cog"], cog_offset=0.88),
+    "bending": replace(EXTENDED["bending"], bending_hz=9.9),
+    "reservoir": replace(EXTENDED["reservoir"], reservoir_ratio=0.66),
+    "track": replace(EXTENDED["track"], track_stiffness=66e6),
+    "hung": replace(EXTENDED["hung"], bodies=(_equipment(mass=1650.0)[0],)),
+    "hung_in_m_v": replace(EXTENDED["hung_in_m_v"], bodies=(_equipment(mass=1650.0)[0],)),
+    "all": replace(EXTENDED["all"], bending_node=0.55),
+}
 
 
 @pytest.fixture(scope="module")
@@ -80,6 +118,118 @@ def test_bogie_pitch_is_the_closed_form_pair(name):
     assert np.sum(np.isclose(f, np.sqrt(k) / (2 * np.pi), rtol=1e-12)) == 2
     lam = exudyn_eigenvalues(p, damped=True)
     assert np.sum(np.isclose(lam, complex(-c / 2, np.sqrt(k - c**2 / 4)), rtol=1e-12)) == 2
+
+
+# ------------------------------------------------------------------ the extended car
+
+@pytest.mark.parametrize("extension", sorted(EXTENDED))
+def test_the_extended_car_has_the_degrees_of_freedom_and_elements_of_railcal(extension):
+    ex = EXTENDED[extension]
+    asm = build_car(CAR, extras=ex)
+    mbs, h = build_car_exudyn(CAR, extras=ex)
+    dof = mbs.ComputeSystemDegreeOfFreedom()
+    assert dof["degreeOfFreedom"] == len(asm.dofs) and dof["redundantConstraints"] == 0
+    assert set(h.coordinates) == set(asm.dofs)
+    assert set(h.springs) == {e.name for e in asm.elements}
+
+
+@pytest.mark.parametrize("name", VEHICLE_NAMES)
+@pytest.mark.parametrize("extension", sorted(EXTENDED))
+def test_extended_undamped_frequencies_agree_with_railcal_to_1e_6(extension, name):
+    p, ex = VEHICLES[name], EXTENDED[extension]
+    ours, theirs = railcal_eigenvalues(p, damped=False, extras=ex), exudyn_eigenvalues(p, damped=False, extras=ex)
+    assert eigen_errors(ours, theirs).max() <= 1e-6, (ours, theirs)
+
+
+@pytest.mark.parametrize("name", VEHICLE_NAMES)
+@pytest.mark.parametrize("extension", sorted(EXTENDED))
+def test_extended_damped_eigenvalues_agree_with_railcal_to_1e_4(extension, name):
+    p, ex = VEHICLES[name], EXTENDED[extension]
+    ours, theirs = railcal_eigenvalues(p, damped=True, extras=ex), exudyn_eigenvalues(p, damped=True, extras=ex)
+    assert np.all(theirs.real < 0)
+    assert eigen_errors(ours, theirs).max() <= 1e-4, (ours, theirs)
+
+
+@pytest.mark.parametrize("extension", sorted(EXTENDED))
+def test_a_tenth_more_of_any_addition_fails_the_eigenvalue_tolerances(extension):
+    """The tolerances can see each addition: exudyn's car with one addition 10 % off is
+    far outside them against railcal's."""
+    ex, off = EXTENDED[extension], PERTURBED[extension]
+    undamped = eigen_errors(railcal_eigenvalues(CAR, damped=False, extras=ex),
+                            exudyn_eigenvalues(CAR, damped=False, extras=off))
+    damped = eigen_errors(railcal_eigenvalues(CAR, damped=True, extras=ex),
+                          exudyn_eigenvalues(CAR, damped=True, extras=off))
+    assert undamped.max() > 100 * 1e-6 and damped.max() > 10 * 1e-4, (undamped, damped)
+
+
+def test_equipment_carved_out_of_m_v_leaves_the_whole_carbody_as_weighed():
+    """The rigid rest plus the tank keep m_v, the centre at cog_offset and J_v about it;
+    railcal's carbody is the same rest body."""
+    ex = EXTENDED["all"]
+    m, x, J = carbody_rest(CAR, ex)
+    assert m + _TANK.mass == pytest.approx(CAR.m_v, rel=1e-14)
+    assert (m * x + _TANK.mass * _TANK.x) / CAR.m_v == pytest.approx(ex.cog_offset, rel=1e-12)
+    assert J + m * (x - ex.cog_offset) ** 2 + _TANK.mass * (_TANK.x - ex.cog_offset) ** 2 == \
+        pytest.approx(CAR.J_v, rel=1e-12)
+    railcal = next(b for b in build_car(CAR, extras=ex).bodies if b.name == "carbody")
+    assert (m, x, J) == pytest.approx((railcal.mass, railcal.x, railcal.inertia), rel=1e-12)
+
+
+def test_on_a_rail_rising_forward_the_extended_car_starts_relaxed_and_nose_up():
+    """Rail level = a s: every body of the extended car rests at the rail level under its
+    centre, pitches by -a, the carbody unbent (the wheelsets on the relaxed track too)."""
+    a, start = 2e-3, 50.0
+    s = np.linspace(0.0, 200.0, 81)
+    ex = EXTENDED["all"]
+    mbs, h = build_car_exudyn(CAR, rail=RailInput(s, a * s, speed=10.0, start=start), extras=ex)
+    q = mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Initial)
+    x = {b.name: b.x for b in build_car(CAR, extras=ex).bodies}
+    expected = {"carbody_bending": 0.0}
+    for body, xb in x.items():
+        expected[f"{body}_z"] = a * (start + xb)
+        expected[f"{body}_pitch"] = -a
+    assert set(h.coordinates) <= set(expected)
+    for dof, (i, sign) in h.coordinates.items():
+        assert sign * q[i] == pytest.approx(expected[dof], rel=1e-12, abs=1e-15), dof
+    for x_point, (node, _) in h.carbody_points.items():  # the bending carbody's attachment points
+        assert q[mbs.GetNodeODE2Index(node)] == pytest.approx(a * (start + x_point), rel=1e-12)
+
+
+@pytest.mark.parametrize("extras, match", [
+    (CarExtras(bodies=(replace(_TANK, inertia=100.0),), elements=(_MOUNT,)), "'tank': .* point masses only"),
+    (CarExtras(bodies=(_TANK,), elements=(replace(_MOUNT, bottom=replace(_MOUNT.top, body=None, x=0.0,
+                                                                           input="z_rail_1")),)),
+     "'tank_mount' ends on the input 'z_rail_1'"),
+    (CarExtras(bodies=(_equipment(mass=40000.0)[0],), elements=(_MOUNT,), hung_in_m_v=True),
+     r"leave the rigid carbody -1253 kg"),
+])
+def test_additions_the_exudyn_car_cannot_build_are_refused_saying_which(extras, match):
+    with pytest.raises(ValueError, match=match):
+        build_car_exudyn(CAR, extras=extras)
+
+
+def _railcal_outputs(p, extras, profile, t, substeps=20):
+    """railcal's exact response (first-order hold on a grid ``substeps`` times finer) of
+    OUTPUTS at the bodies' centres of mass, from static equilibrium on the track."""
+    dt = (t[1] - t[0]) / substeps
+    z, dz, _, _ = rail_inputs(p, profile, SPEED, t[0] + dt * np.arange((len(t) - 1) * substeps + 1), START)
+    asm = build_car(p, extras=extras)
+    x = {b.name: b.x for b in asm.bodies}
+    outputs = [Output(f"{b}_acc_z", "acceleration", b, x[b]) for b in BODIES]
+    outputs += [Output(f"{b}_pitch_rate", "pitch_rate", b) for b in BODIES]
+    ss = state_space(asm, outputs)
+    y = ModalSimulator(ss, dt, x0="static").step_chunk(np.hstack([z, dz]))[::substeps]
+    return {name: y[:, k] for k, name in enumerate(ss.outputs)}
+
+
+def test_extended_response_over_the_track_matches_railcal_within_nrmse_1e_3(track_rail):
+    rail, profile = track_rail
+    ex = EXTENDED["all"]
+    res = simulate_car_exudyn(CAR, rail, duration=0.5, output_interval=1e-3, extras=ex)
+    ref = _railcal_outputs(CAR, ex, profile, res.t)
+    errors = {n: nrmse(res.outputs[n], ref[n]) for n in OUTPUTS}
+    assert max(errors.values()) <= 1e-3, errors
+    assert res.outputs["carbody_acc_z"][0] == pytest.approx(ref["carbody_acc_z"][0], rel=1e-6)  # same start
 
 
 # ------------------------------------------------------------------ response over a track

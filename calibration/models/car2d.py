@@ -21,7 +21,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from ..data.errors import InputError
 from .assembly import Assembly, Attachment, Body, ElasticMode, SpringDamper, assemble, beam_bending_shape
 from .parameters import CarParameters
 
@@ -169,16 +168,6 @@ def extras_from_json(data) -> CarExtras:
         bodies.append(b)
         elements.append(e)
     return CarExtras(**data, bodies=tuple(bodies), elements=tuple(elements))
-
-
-def seed_car_only(calibration, what: str, path=None) -> None:
-    """InputError (exit 2) when ``calibration`` (a calibration file's content) carries an
-    extended model's ``extras``, which ``what`` cannot carry yet."""
-    added = sorted((calibration.get("extras") or {}).keys())
-    if added:
-        raise InputError(f"{what} carries the seed's car only, not the extended model's {', '.join(added)}; "
-                         "use the baseline calibration, or validate the extended model with railcal validate",
-                         path=path, key="extras")
 
 
 def sensor_model_from_json(data) -> tuple[float, float]:

@@ -110,7 +110,8 @@ static int check(const double *r, char *msg, size_t n) {
         if (must(r, checks[i].vr, checks[i].zero_ok, msg, n) != 0) return -1;
 #if CAR_N_HUNG > 0
     for (int h = 0; h < CAR_N_HUNG; h++) {
-        if (must(r, HUNG_VR[h][0], 0, msg, n) || must(r, HUNG_VR[h][2], 0, msg, n) || must(r, HUNG_VR[h][3], 1, msg, n))
+        if (must(r, HUNG_VR[h][0], 0, msg, n) || must(r, HUNG_VR[h][2], 0, msg, n) ||
+            must(r, HUNG_VR[h][3], 1, msg, n))
             return -1;
         if (!isfinite(r[HUNG_VR[h][1]])) {
             snprintf(msg, n, "%s = %g must be finite", REAL_NAME[HUNG_VR[h][1]], r[HUNG_VR[h][1]]);
@@ -275,7 +276,8 @@ int model_build(const double *r, LtiSystem *sys, char *msg, size_t msg_len) {
         const int w = wheel_body(j);
 #if CAR_TRACK
         const double k = r[VR_track_stiffness];
-        add_element(K, Cd, Bk, Bc, &geo, w, geo.xw[j], -1, 0.0, j, k, 2 * r[VR_track_damping_ratio] * sqrt(k * geo.mass[w]));
+        add_element(K, Cd, Bk, Bc, &geo, w, geo.xw[j], -1, 0.0, j, k,
+                    2 * r[VR_track_damping_ratio] * sqrt(k * geo.mass[w]));
 #endif
         add_element(K, Cd, Bk, Bc, &geo, 1 + j / 2, geo.xw[j], w, geo.xw[j], w >= 0 ? -1 : j, r[VR_k_p], r[VR_c_p]);
     }
