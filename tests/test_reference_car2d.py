@@ -17,11 +17,10 @@ import pytest
 from conftest import CAR_FMU_SPEED as SPEED
 from conftest import CAR_FMU_START as START
 
-from calibration.models.car2d import CarExtras, Output, build_car, hung_body, state_space
-from calibration.models.simulate import ModalSimulator
+from calibration.models.car2d import CarExtras, build_car, hung_body
 from calibration.models.vehicles import INTERCITY_TRAILER as CAR
 from calibration.models.vehicles import VEHICLES
-from fmu_src.reference import car_reference, nrmse, rail_inputs, smooth_profile
+from fmu_src.reference import car_reference, nrmse, smooth_profile
 from fmu_src.variables import car2d_spec
 from reference_models.car2d import (BODIES, OUTPUTS, IntegratorSettings, RailInput, build_car_exudyn, carbody_rest,
                                     eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn)
@@ -208,25 +207,11 @@ def test_additions_the_exudyn_car_cannot_build_are_refused_saying_which(extras, 
         build_car_exudyn(CAR, extras=extras)
 
 
-def _railcal_outputs(p, extras, profile, t, substeps=20):
-    """railcal's exact response (first-order hold on a grid ``substeps`` times finer) of
-    OUTPUTS at the bodies' centres of mass, from static equilibrium on the track."""
-    dt = (t[1] - t[0]) / substeps
-    z, dz, _, _ = rail_inputs(p, profile, SPEED, t[0] + dt * np.arange((len(t) - 1) * substeps + 1), START)
-    asm = build_car(p, extras=extras)
-    x = {b.name: b.x for b in asm.bodies}
-    outputs = [Output(f"{b}_acc_z", "acceleration", b, x[b]) for b in BODIES]
-    outputs += [Output(f"{b}_pitch_rate", "pitch_rate", b) for b in BODIES]
-    ss = state_space(asm, outputs)
-    y = ModalSimulator(ss, dt, x0="static").step_chunk(np.hstack([z, dz]))[::substeps]
-    return {name: y[:, k] for k, name in enumerate(ss.outputs)}
-
-
 def test_extended_response_over_the_track_matches_railcal_within_nrmse_1e_3(track_rail):
     rail, profile = track_rail
     ex = EXTENDED["all"]
     res = simulate_car_exudyn(CAR, rail, duration=0.5, output_interval=1e-3, extras=ex)
-    ref = _railcal_outputs(CAR, ex, profile, res.t)
+    ref = car_reference(car2d_spec(CAR.as_dict(), extras=ex), CAR, profile, SPEED, res.t, start=START, extras=ex)
     errors = {n: nrmse(res.outputs[n], ref[n]) for n in OUTPUTS}
     assert max(errors.values()) <= 1e-3, errors
     assert res.outputs["carbody_acc_z"][0] == pytest.approx(ref["carbody_acc_z"][0], rel=1e-6)  # same start
