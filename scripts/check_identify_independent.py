@@ -12,8 +12,15 @@ seen by the gyro); the bogie bounce of the intercity car (damping ratio about 0.
 a flexible carbody, within 3 % or undetermined.
 
 Seeds: vehicle k of the library (in its order) uses seed 9100 + k, drawn once, never retired.
+The rule that a carbody mode whose partner the fit did not resolve is undetermined
+(``unpaired_carbody``) was found on these seeds; its evidence is a second series, 9300 + k,
+drawn once after it (``--first-seed 9300``), expected before its first run: no carbody mode
+given as a number when its partner was not resolved, and the other wrong numbers of the first
+series (carbody pitch +3.3 %, Manchester; bogie bounce +7.5 % and +10.8 %, Eurostar power car
+and Pioneer R), biases this rule does not address, may recur.
 
     python scripts/check_identify_independent.py [--journeys 6] [--length-km 10] [--vehicles NAME ...]
+        [--first-seed 9100]
 """
 from __future__ import annotations
 
@@ -33,14 +40,14 @@ LIMITS = {"carbody_bounce": 3.0, "carbody_pitch": 3.0, "bogie_bounce": 2.0, "bog
 FIRST_SEED = 9100
 
 
-def check(k: int, name: str, journeys: int, length_km: float, workdir: Path) -> dict:
+def check(k: int, name: str, journeys: int, length_km: float, workdir: Path, first_seed: int = FIRST_SEED) -> dict:
     out = workdir / name
     settings = IndependentSettings(journeys=journeys, line=LineSpec(length=length_km * 1000.0))
     t0 = time.perf_counter()
-    truth = synth_in_service_independent(out, seed=FIRST_SEED + k, settings=settings, vehicle=name, fmt="parquet")
+    truth = synth_in_service_independent(out, seed=first_seed + k, settings=settings, vehicle=name, fmt="parquet")
     t1 = time.perf_counter()
     result = identify_in_service(open_campaign(out))
-    row = {"vehicle": name, "seed": FIRST_SEED + k, "synth_s": round(t1 - t0, 1),
+    row = {"vehicle": name, "seed": first_seed + k, "synth_s": round(t1 - t0, 1),
            "identify_s": round(time.perf_counter() - t1, 1), "modes": {}}
     undetermined = {u.label: u.reason for u in result.undetermined} if result.undetermined else {}
     for lbl in RIGID_LABELS:
@@ -55,6 +62,9 @@ def check(k: int, name: str, journeys: int, length_km: float, workdir: Path) -> 
         else:
             err = 100 * (m.frequency_hz / f_true - 1)
             entry.update(identified_hz=round(m.frequency_hz, 4), error_pct=round(err, 2),
+                         std_pct=None if m.frequency_std_hz is None else round(100 * m.frequency_std_hz
+                                                                               / m.frequency_hz, 2),
+                         method=m.method, damping_ratio=None if m.damping_ratio is None else round(m.damping_ratio, 3),
                          verdict="within" if abs(err) <= LIMITS[lbl] else "WRONG")
         row["modes"][lbl] = entry
     return row
@@ -65,13 +75,14 @@ def main() -> int:
     ap.add_argument("--journeys", type=int, default=6)
     ap.add_argument("--length-km", type=float, default=10.0)
     ap.add_argument("--vehicles", nargs="+", default=list(VEHICLES))
+    ap.add_argument("--first-seed", type=int, default=FIRST_SEED, help="the series: 9100 (first) or 9300 (second)")
     args = ap.parse_args()
     counts = {"within": 0, "undetermined": 0, "WRONG": 0}
     with tempfile.TemporaryDirectory() as tmp:
         for k, name in enumerate(VEHICLES):
             if name not in args.vehicles:
                 continue
-            row = check(k, name, args.journeys, args.length_km, Path(tmp))
+            row = check(k, name, args.journeys, args.length_km, Path(tmp), args.first_seed)
             for e in row["modes"].values():
                 counts[e["verdict"]] += 1
             print(json.dumps(row), flush=True)

@@ -47,3 +47,24 @@ def test_a_mode_outside_its_range_is_named_with_the_range_and_one_inside_passes(
     assert why is not None and "3.8 Hz" in why and "0.6-1.4 Hz" in why and "carbody_bounce" in why
     assert outside("carbody_bounce", 0.93, ranges) is None
     assert outside("bogie_bounce", 30.0, ranges) is None  # no range, no verdict
+
+
+def test_a_carbody_mode_whose_partner_the_fit_did_not_resolve_is_undetermined_not_a_number():
+    """Both carbody modes come from one two-pole fit: one pole left (its partner spent on
+    another resonance) stood in for both and is neither's frequency."""
+    from calibration.identification.in_service import IdentifiedMode, UndeterminedMode, unpaired_carbody
+
+    def mode(label, f, source):
+        return IdentifiedMode(label, f, 0.2, None, "input_output_fit", source, None, None)
+
+    bogie = mode("bogie_bounce", 7.1, "own_rail")
+    pitch = mode("carbody_pitch", 1.19, "trailing_rail")
+    gone = UndeterminedMode("carbody_bounce", outside("carbody_bounce", 3.85, {"carbody_bounce": (0.6, 1.5)}))
+    modes, undetermined = unpaired_carbody([pitch, bogie], [gone])
+    assert modes == [bogie]
+    why = next(u.reason for u in undetermined if u.label == "carbody_pitch")
+    assert "one carbody pole (1.19 Hz)" in why and "3.85 Hz" in why
+    both = [mode("carbody_bounce", 0.91, "trailing_rail"), pitch, bogie]  # a resolved pair stands
+    assert unpaired_carbody(both, []) == (both, [])
+    fdd = [mode("carbody_bounce", 0.9, "fdd"), bogie]  # an FDD peak is not the pair's fit
+    assert unpaired_carbody(fdd, []) == (fdd, [])
