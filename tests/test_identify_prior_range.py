@@ -68,3 +68,31 @@ def test_a_carbody_mode_whose_partner_the_fit_did_not_resolve_is_undetermined_no
     assert unpaired_carbody(both, []) == (both, [])
     fdd = [mode("carbody_bounce", 0.9, "fdd"), bogie]  # an FDD peak is not the pair's fit
     assert unpaired_carbody(fdd, []) == (fdd, [])
+
+
+def test_a_pole_damped_far_outside_what_the_priors_allow_is_another_resonance(tmp_path):
+    """The intercity car's priors with Table 6-like damping: the rigid-body modes' ratios lie
+    inside their ranges, and a pole at a bogie mode's frequency but damped ten times less
+    (a lightly damped resonance of something else) is refused, naming the range."""
+    from calibration.identification.prior_range import DAMPING_MARGIN, damping_outside, prior_damping_ranges
+
+    damped = {**NOMINAL, "c_p": 29400.0, "c_s": 45000.0}
+    ranges = {n: (0.6 * damped[n], 1.5 * damped[n]) for n in damped}
+    priors = {n: Prior(damped[n], lo, hi) for n, (lo, hi) in ranges.items()}
+    root = tmp_path / "c"
+    with CampaignWriter(root, tiny_meta(priors=priors)) as w:
+        w.write_run("run_a", tiny_columns())
+        w.commit()
+    campaign = open_campaign(root)
+    prior = prior_parameters(campaign)
+    r = prior_damping_ranges(campaign, prior)
+    from calibration.models.car2d import damped_modes
+
+    for m in damped_modes(build_car(prior)):
+        assert r[m.label][0] * DAMPING_MARGIN <= m.damping_ratio <= r[m.label][1], m.label
+        assert damping_outside(m.label, m.damping_ratio, r) is None
+    why = damping_outside("bogie_bounce", r["bogie_bounce"][0] / 10, r)
+    assert why is not None and "bogie_bounce" in why and "damping ratio" in why
+    assert damping_outside("bogie_bounce", None, r) is None
+    no_damping = _campaign(tmp_path / "d", {n: (0.9 * NOMINAL[n], 1.1 * NOMINAL[n]) for n in NOMINAL})
+    assert prior_damping_ranges(no_damping, prior_parameters(no_damping)) == {}

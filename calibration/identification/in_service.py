@@ -43,7 +43,7 @@ from ..signals.spectral_lines import LineSettings, LineWindowCollector, Spectral
 from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
                   plan_segments)
 from .frf import Pole, fit_poles, h1
-from .prior_range import outside, prior_frequency_ranges
+from .prior_range import damping_outside, outside, prior_damping_ranges, prior_frequency_ranges
 
 RIGID_LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 IO_ANALYSIS = "input_output"
@@ -378,8 +378,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
                                  else "the input-output fit found no pole for it")
             undetermined.append(UndeterminedMode(lbl, f"{reason}; no FDD peak stands in for it"))
     ranges = prior_frequency_ranges(campaign, prior)
+    damping = prior_damping_ranges(campaign, prior)
     for m in list(modes):
-        why = outside(m.label, m.frequency_hz, ranges)
+        why = outside(m.label, m.frequency_hz, ranges) or damping_outside(m.label, m.damping_ratio, damping)
         if why:
             modes.remove(m)
             undetermined.append(UndeterminedMode(m.label, why))
