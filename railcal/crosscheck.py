@@ -21,7 +21,8 @@ from calibration.models.car2d import CarExtras, wheelset_positions
 from calibration.models.parameters import CarParameters
 from fmu_src.reference import car_reference, nrmse, spline_profile
 
-from reference_models.car2d import OUTPUTS, RailInput, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
+from reference_models.car2d import OUTPUTS, eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn
+from reference_models.rail import RailInput
 
 TOLERANCES = {"undamped_rel": 1e-6, "damped_rel": 1e-4, "nrmse": 1e-3}
 OUTPUT_INTERVAL = 1e-3  # [s]

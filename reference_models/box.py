@@ -39,7 +39,7 @@ from static equilibrium):
   its wheelset's rail point) to a ``MarkerBodyPosition`` on the bogie;
 * the rail under wheelset j (1 leads: wheelset x descending, as railcal numbers them): a
   vertical ``ObjectMass1D`` on a ``Node1D`` whose coordinate is prescribed to the rail level by
-  a ``CoordinateConstraint`` with symbolic spline offsets (:class:`reference_models.car2d.
+  a ``CoordinateConstraint`` with symbolic spline offsets (:class:`reference_models.rail.
   RailInput`, C++ at run time); every axle box of that wheelset hangs on it, so its ground end
   moves vertically with the rail (railcal: e = D q + e_z z_j). Without a rail the levels are
   held at zero (the stationary excitation test);
@@ -80,7 +80,7 @@ from calibration.models.box.assembly import BoxModel, local_operator, assemble
 from calibration.models.box.vehicle_reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
-from reference_models.car2d import RailInput, drive_rail_constraints
+from reference_models.rail import RailInput, drive_rail_constraints
 
 RIGID_HZ = 0.05  # [Hz] carbody modes below this are rigid-body motions (no structural damping)
 RAIL_MASS = 1.0  # [kg] of each prescribed rail point (its motion is given: the value only scales a reaction)
@@ -247,7 +247,7 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
     handles : BoxHandles
     """
     if rail is not None and not isinstance(rail, RailInput):
-        raise TypeError(f"rail: expected a reference_models.car2d.RailInput, not {type(rail).__name__}")
+        raise TypeError(f"rail: expected a reference_models.rail.RailInput, not {type(rail).__name__}")
     if not zeta >= 0:
         raise ValueError(f"zeta = {zeta}; must be >= 0")
     if sensors is None or exciter is None:

@@ -54,7 +54,7 @@ from reference_models.box import (  # noqa: E402
     reduced_frequencies,
     simulate_box_exudyn,
 )
-from reference_models.car2d import RailInput  # noqa: E402
+from reference_models.rail import RailInput  # noqa: E402
 
 TOL_EIG, TOL_NRMSE, WALL_PER_10_S = 1e-4, 1e-2, 30.0
 ZETA, BELOW_HZ, DURATION, FS, STEP = 0.02, 20.0, 2.0, 1000.0, 1e-4

@@ -31,7 +31,7 @@ from reference_models.box import (
     reduced_frequencies,
     simulate_box_exudyn,
 )
-from reference_models.car2d import RailInput
+from reference_models.rail import RailInput
 
 CUTOFF, ZETA = 60.0, 0.02
 

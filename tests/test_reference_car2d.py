@@ -22,8 +22,9 @@ from calibration.models.vehicles import INTERCITY_TRAILER as CAR
 from calibration.models.vehicles import VEHICLES
 from fmu_src.reference import car_reference, nrmse, smooth_profile
 from fmu_src.variables import car2d_spec
-from reference_models.car2d import (BODIES, OUTPUTS, IntegratorSettings, RailInput, build_car_exudyn, carbody_rest,
-                                    eigen_errors, exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn)
+from reference_models.car2d import (BODIES, OUTPUTS, IntegratorSettings, build_car_exudyn, carbody_rest, eigen_errors,
+                                    exudyn_eigenvalues, railcal_eigenvalues, simulate_car_exudyn)
+from reference_models.rail import RailInput
 
 VEHICLE_NAMES = sorted(VEHICLES)
 
