@@ -174,7 +174,8 @@ static int geometry(const double *r, Geometry *g, char *msg, size_t n) {
 #endif
 #if CAR_TRACK
     for (int j = 0; j < NW; j++)
-        g->mass[B_WHEEL + j] = r[VR_m_w] + r[VR_track_mass], g->inertia[B_WHEEL + j] = 0.0, g->x[B_WHEEL + j] = g->xw[j];
+        g->mass[B_WHEEL + j] = r[VR_m_w] + r[VR_track_mass], g->inertia[B_WHEEL + j] = 0.0,
+        g->x[B_WHEEL + j] = g->xw[j];
 #endif
 #if CAR_N_HUNG > 0
     for (int h = 0; h < CAR_N_HUNG; h++)
