@@ -29,15 +29,6 @@ jackknife standard error 8.7 %). A pole damped outside what the priors allow (by
 less than its priors allow; Manchester's carbody bias and the heavily damped Eurostar bogie
 bounce, which no rule here addresses, may recur as wrong numbers.
 
-Third series, measured: 12 within, 5 undetermined, 3 wrong, all a heavily damped bogie bounce
-(+2.05 % intercity, +34.5 % Pioneer R with a jackknife standard error of 4.3 %, +7.4 % Eurostar
-with 1.1 %). A mode whose 95 % interval over the journeys is wider than the accuracy a reported
-mode is held to (3 % carbody, 2 % bogie: ``in_service.too_uncertain``) is now undetermined too.
-Its evidence is a fourth series, 9700 + k, expected before its first run: at most one wrong
-number, a heavily damped bogie bounce whose interval is narrow (a bias no rule here sees);
-right modes with wide intervals (the intercity car's carbody modes, 3.7-3.8 % standard error on
-the third series) reported undetermined.
-
     python scripts/check_identify_independent.py [--journeys 6] [--length-km 10] [--vehicles NAME ...]
         [--first-seed 9100]
 """
@@ -94,7 +85,7 @@ def main() -> int:
     ap.add_argument("--journeys", type=int, default=6)
     ap.add_argument("--length-km", type=float, default=10.0)
     ap.add_argument("--vehicles", nargs="+", default=list(VEHICLES))
-    ap.add_argument("--first-seed", type=int, default=FIRST_SEED, help="the series: 9100, 9300, 9500 or 9700")
+    ap.add_argument("--first-seed", type=int, default=FIRST_SEED, help="the series: 9100, 9300 or 9500")
     args = ap.parse_args()
     counts = {"within": 0, "undetermined": 0, "WRONG": 0}
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,8 +1,6 @@
 """Identified rigid-body modes are checked against where the campaign's priors put them."""
 from __future__ import annotations
 
-import pytest
-
 from calibration.data.campaign import Prior, open_campaign
 from calibration.data.outputs import CampaignWriter
 from calibration.identification.in_service import prior_parameters
@@ -98,21 +96,3 @@ def test_a_pole_damped_far_outside_what_the_priors_allow_is_another_resonance(tm
     assert damping_outside("bogie_bounce", None, r) is None
     no_damping = _campaign(tmp_path / "d", {n: (0.9 * NOMINAL[n], 1.1 * NOMINAL[n]) for n in NOMINAL})
     assert prior_damping_ranges(no_damping, prior_parameters(no_damping)) == {}
-
-
-def test_a_mode_whose_interval_over_the_journeys_is_wider_than_its_accuracy_is_undetermined():
-    from calibration.identification.in_service import IdentifiedMode, IdentifySettings, too_uncertain
-
-    def mode(label, f, std):
-        return IdentifiedMode(label, f, 0.3, None, "input_output_fit", "own_rail", None, None, std)
-
-    s = IdentifySettings()
-    wide = mode("bogie_bounce", 10.0, 0.11)  # +-2.2 % at 95 %, the bogie's 2 % exceeded
-    narrow = mode("carbody_bounce", 1.0, 0.015)  # +-2.9 %, inside the carbody's 3 %
-    unknown = mode("bogie_pitch", 12.0, None)  # no jackknife: the number stands
-    modes, undetermined = too_uncertain([wide, narrow, unknown], [], s)
-    assert modes == [narrow, unknown]
-    assert undetermined[0].label == "bogie_bounce" and "+- 2.2 %" in undetermined[0].reason
-    assert too_uncertain([wide], [], IdentifySettings(bogie_within_pct=2.5))[0] == [wide]
-    with pytest.raises(ValueError, match="bogie_within_pct"):
-        IdentifySettings(bogie_within_pct=0.0)

@@ -65,11 +65,6 @@ class IdentifySettings:
     # of the trailing rail that is not the leading rail's delayed copy; below it the
     # two-input estimate is not used (the same document gives the campaigns behind 0.3).
     min_separability: float = 0.3
-    # The accuracy [%] a reported carbody / bogie mode is held to (issue 31's targets): a mode
-    # whose 95 % interval over the journeys (1.96 jackknife standard errors) is wider is
-    # reported undetermined, its estimate and interval in the reason.
-    carbody_within_pct: float = 3.0
-    bogie_within_pct: float = 2.0
 
     def __post_init__(self):
         checks.increasing(self, "carbody_band", "bogie_band", low=0.0)
@@ -77,7 +72,6 @@ class IdentifySettings:
         checks.whole(self, "io_segments")
         checks.non_negative(self, "peak_prominence")
         checks.fraction(self, "min_coherence", "min_separability", closed=True)
-        checks.positive(self, "carbody_within_pct", "bogie_within_pct")
 
 
 @dataclass(frozen=True)
@@ -391,7 +385,6 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             modes.remove(m)
             undetermined.append(UndeterminedMode(m.label, why))
     modes, undetermined = unpaired_carbody(modes, undetermined)
-    modes, undetermined = too_uncertain(modes, undetermined, settings)
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
     undetermined.sort(key=lambda u: RIGID_LABELS.index(u.label))
 
@@ -419,22 +412,6 @@ def unpaired_carbody(modes: list[IdentifiedMode], undetermined: list[Undetermine
     reason = (f"the trailing-rail fit resolved one carbody pole ({m.frequency_hz:.3g} Hz), not two ({other}: {why}); "
               "one pole standing in for both modes is neither's frequency")
     return [x for x in modes if x is not m], [*undetermined, UndeterminedMode(m.label, reason)]
-
-
-def too_uncertain(modes: list[IdentifiedMode], undetermined: list[UndeterminedMode], settings: IdentifySettings):
-    """(modes, undetermined) with a mode whose 95 % interval over the journeys is wider than
-    the accuracy a reported mode is held to made undetermined. A mode without a jackknife
-    (fewer than three journeys, or an FDD peak) keeps its number."""
-    keep, out = [], list(undetermined)
-    for m in modes:
-        limit = settings.carbody_within_pct if m.label.startswith("carbody") else settings.bogie_within_pct
-        half = None if m.frequency_std_hz is None else 100 * 1.96 * m.frequency_std_hz / m.frequency_hz
-        if half is not None and half > limit:
-            out.append(UndeterminedMode(m.label, f"{m.frequency_hz:.4g} Hz +- {half:.2g} % (95 % over the journeys), "
-                                                 f"wider than the {limit:g} % a reported mode is held to"))
-        else:
-            keep.append(m)
-    return keep, out
 
 
 def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, prior_f: dict):
