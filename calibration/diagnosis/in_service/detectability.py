@@ -64,6 +64,9 @@ class Magnitude:
     held: dict = field(default_factory=dict)
     signed: bool = False
     log: bool = True
+    # further values of the held parameters: the limit is found at each, and the weakest is
+    # the limit (what the effect's shape will be is not known before it is found)
+    across: tuple[dict, ...] = ()
 
     def at(self, t: float) -> float:
         """The magnitude a fraction ``t`` (0 weak, 1 strong) along the range."""
@@ -82,8 +85,12 @@ RESPONSE_MAGNITUDES = {
     "carbody_bending": Magnitude("bending_hz", "Hz", 18.0, 4.0, {"bending_damping": _EXTRAS.bending_damping,
                                                                  "bending_mass_ratio": _EXTRAS.bending_mass_ratio}),
     "cog_offset": Magnitude("cog_offset", "m", 0.0, 3.0, signed=True, log=False),
+    # an orifice's corner moves with the flow (a quadratic orifice's with the amplitude): the
+    # default corner and 2.5 times below and above it, across the carbody and bogie bands
     "airspring_reservoir": Magnitude("reservoir_ratio", "-", 0.05, 5.0,
-                                     {"reservoir_corner_hz": _EXTRAS.reservoir_corner_hz}),
+                                     {"reservoir_corner_hz": _EXTRAS.reservoir_corner_hz},
+                                     across=({"reservoir_corner_hz": _EXTRAS.reservoir_corner_hz / 2.5},
+                                             {"reservoir_corner_hz": _EXTRAS.reservoir_corner_hz * 2.5})),
 }
 #: extensions for what every vehicle has (:attr:`.extensions.Extension.always_normal`) name no
 #: cause, so "no effect above these sizes" has no size of theirs to give
@@ -223,18 +230,38 @@ def _carbody_words(data: DiagnosisData) -> str:
             "(above the bogies and at the centre) would see it")
 
 
+def _weakest(mag: Magnitude, found: list) -> int:
+    """Index of the weakest of ``found`` ((limit, strong, observable) per held variant): one
+    not observable, else one not detectable, else the limit nearest the strong end."""
+    def rank(x):
+        limit, _, observable = x
+        if not observable or limit is None:
+            return (0 if not observable else 1, 0.0)
+        return (2, limit if mag.strong < mag.weak else -limit)
+    return min(range(len(found)), key=lambda i: rank(found[i]))
+
+
 def _response_limit(name: str, r: _Responses, bar: float) -> Limit:
     ext, mag = EXTENSIONS[name], RESPONSE_MAGNITUDES[name]
 
-    def judge(theta: float) -> tuple[float, float]:
-        out = [r.judge(*ext.make({**mag.held, mag.parameter: sgn * theta}))
-               for sgn in ((1.0, -1.0) if mag.signed else (1.0,))]
-        return min(o[0] for o in out), min(o[1] for o in out)
+    def judge_at(held: dict):
+        def judge(theta: float) -> tuple[float, float]:
+            out = [r.judge(*ext.make({**held, mag.parameter: sgn * theta}))
+                   for sgn in ((1.0, -1.0) if mag.signed else (1.0,))]
+            return min(o[0] for o in out), min(o[1] for o in out)
+        return judge
 
-    limit, strong, observable = _search(mag, judge, bar)
+    variants = (mag.held, *mag.across)
+    found = [_search(mag, judge_at(v), bar) for v in variants]
+    k = _weakest(mag, found)
+    limit, strong, observable = found[k]
     stronger = "above" if mag.strong > mag.weak else "below"
-    held = ", ".join(f"{k} = {v:g}" for k, v in mag.held.items())
+    held = ", ".join(f"{key} = {v:g}" for key, v in variants[k].items())
     held = f" ({held} held)" if held else ""
+    if len(variants) > 1:  # the limit at each held value, the weakest taken
+        each = "; ".join(f"{', '.join(f'{v:g}' for v in var.values())}: "
+                         f"{'not detectable' if x[0] is None else f'{x[0]:.3g}'}" for var, x in zip(variants, found))
+        held = f" ({held[2:-1]}, the weakest of {', '.join(mag.held)} = {each})"
     rng = f"{min(mag.weak, mag.strong):g}-{max(mag.weak, mag.strong):g} {mag.unit}"
     if not observable:
         why = f"not observable with this sensor set: even at {mag.strong:g} {mag.unit}{held} {_carbody_words(r.data)}" \
