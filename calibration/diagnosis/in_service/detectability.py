@@ -257,11 +257,12 @@ def _response_limit(name: str, r: _Responses, bar: float) -> Limit:
     limit, strong, observable = found[k]
     stronger = "above" if mag.strong > mag.weak else "below"
     held = ", ".join(f"{key} = {v:g}" for key, v in variants[k].items())
-    held = f" ({held} held)" if held else ""
+    tail = ""
     if len(variants) > 1:  # the limit at each held value, the weakest taken
         each = "; ".join(f"{', '.join(f'{v:g}' for v in var.values())}: "
                          f"{'not detectable' if x[0] is None else f'{x[0]:.3g}'}" for var, x in zip(variants, found))
-        held = f" ({held[2:-1]}, the weakest of {', '.join(mag.held)} = {each})"
+        tail = f"; the weakest of {', '.join(mag.held)} = {each}"
+    held = f" ({held} held{tail})" if held else ""
     rng = f"{min(mag.weak, mag.strong):g}-{max(mag.weak, mag.strong):g} {mag.unit}"
     if not observable:
         why = f"not observable with this sensor set: even at {mag.strong:g} {mag.unit}{held} {_carbody_words(r.data)}" \
