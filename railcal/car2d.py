@@ -31,6 +31,15 @@ def extras(calibration: dict, path) -> CarExtras:
         raise InputError(str(e), path=Path(path), key="extras") from None
 
 
+def sensor_model(calibration: dict, path) -> tuple[float, float]:
+    """(bogie_dx [m], gyro_gain) of a calibration file's ``sensor_model``, or exit 2 naming
+    the file."""
+    try:
+        return sensor_model_from_json(calibration.get("sensor_model"))
+    except ValueError as e:
+        raise InputError(str(e), path=Path(path), key="sensor_model") from None
+
+
 def identify(campaign, args, png: Path, second: Path) -> str:
     from calibration.identification.fdd import FDDSettings
     from calibration.identification.in_service import IdentifySettings, identify_in_service
@@ -125,10 +134,7 @@ def validate(campaign, calibration: dict, args) -> str:
     from calibration.validation.in_service import validate as validate_runs
 
     p = parameters(calibration, args.calibration)
-    try:
-        bogie_dx, gyro_gain = sensor_model_from_json(calibration.get("sensor_model"))
-    except ValueError as e:
-        raise InputError(str(e), path=Path(args.calibration), key="sensor_model") from None
+    bogie_dx, gyro_gain = sensor_model(calibration, args.calibration)
     result = validate_runs(campaign, p, extras=extras(calibration, args.calibration), bogie_dx=bogie_dx,
                            gyro_gain=gyro_gain, progress=progress_for(args))
     png = result.plot(Path(args.out).with_suffix(".png"))
@@ -146,6 +152,7 @@ def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tu
     from .crosscheck import crosscheck_car
 
     p, added = parameters(calibration, args.calibration), extras(calibration, args.calibration)
+    sensor_model(calibration, args.calibration)  # unused here, but a malformed file is refused whole
     try:
         carbody_centre(p, added)
     except ValueError as e:

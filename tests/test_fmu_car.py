@@ -437,7 +437,7 @@ def test_the_extended_model_fmu_matches_the_extended_python_model_and_its_additi
     assert res is None and "bending_node" in " ".join(log), log
 
 
-def test_export_fmu_takes_a_diagnosis_file_and_refuses_extras_it_cannot_build(tmp_path, car_track, capsys):
+def test_export_fmu_and_crosscheck_take_a_diagnosis_file_and_refuse_extras_they_cannot_build(tmp_path, car_track, capsys):
     import json
 
     from calibration.models.car2d import extras_to_json
@@ -461,3 +461,6 @@ def test_export_fmu_takes_a_diagnosis_file_and_refuses_extras_it_cannot_build(tm
         assert main(["export-fmu", "--calibration", str(path), "--out", str(tmp_path / "x.fmu"), "--quiet"]) == 2
         assert word in capsys.readouterr().err
         assert not (tmp_path / "x.fmu").exists()
+        assert main(["crosscheck", "--calibration", str(path), "--out", str(tmp_path / "x.json"), "--quiet"]) == 2
+        assert word in capsys.readouterr().err
+        assert not (tmp_path / "x.json").exists()
