@@ -52,10 +52,10 @@ def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: fl
         elif kind == OUT_PITCH_RATE:
             outs.append(Output(v.name, "pitch_rate", CAR_BODIES[body]))
         elif kind == OUT_CONTACT:
-            for part, x_body in ((f"bogie{1 + wheel // 2}", "bogie"), (f"wheelset{wheel + 1}", "wheelset")):
-                if x_body == "wheelset" and not free:
-                    continue
-                outs += [Output(f"{v.name}:{x_body}:{q}", q, part, xw[wheel])
+            outs += [Output(f"{v.name}:bogie:{q}", q, f"bogie{1 + wheel // 2}", xw[wheel])
+                     for q in ("displacement", "velocity")]
+            if free:
+                outs += [Output(f"{v.name}:wheelset:{q}", q, f"wheelset{wheel + 1}", xw[wheel])
                          for q in ("displacement", "velocity", "acceleration")]
         else:
             raise ValueError(f"{v.name}: unknown output kind {kind}")
