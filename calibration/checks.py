@@ -17,6 +17,14 @@ def positive(obj, *names: str) -> None:
             _fail(obj, n, "a finite number > 0", v)
 
 
+def above(obj, *names: str, bound: float) -> None:
+    """Each field is a finite number > ``bound``."""
+    for n in names:
+        v = getattr(obj, n)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > bound):
+            _fail(obj, n, f"a finite number > {bound:g}", v)
+
+
 def non_negative(obj, *names: str) -> None:
     """Each field is a finite number >= 0."""
     for n in names:
