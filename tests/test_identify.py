@@ -12,6 +12,9 @@ from railcal.cli import main
 from calibration.data.campaign import open_campaign
 from calibration.identification.fdd import RailInput, derived_channels
 from calibration.identification.in_service import RIGID_LABELS, identify_in_service
+from calibration.models.vehicles import INTERCITY_TRAILER
+from calibration.truth.in_service import InServiceSettings, synth_in_service
+from calibration.truth.track import LineSpec
 
 
 @pytest.fixture(scope="module")
@@ -131,3 +134,34 @@ def test_a_bad_gyro_sample_invalidates_its_neighbours_in_the_centre_acceleration
         assert not ok[99:102].any() and ok[97] and ok[103]
     finally:
         run.valid["bogie1_gyro_pitch"][:] = gyro_ok
+
+
+@pytest.fixture(scope="module")
+def heavily_damped(tmp_path_factory):
+    """A campaign of the seed's car at its Table 6 damping (bogie bounce damped about 0.4),
+    and a copy whose bogie accelerometer reads 3 % high and gyro 3 % low, as a sensor set's
+    calibration may leave them: (campaign, copy, truth)."""
+    root = tmp_path_factory.mktemp("damped") / "campaign"
+    car = INTERCITY_TRAILER.replace(c_p=29_400.0, c_s=45_000.0)
+    settings = InServiceSettings(journeys=6, line=LineSpec(length=10_000.0), vehicle=car)
+    truth = synth_in_service(root, seed=23, settings=settings, fmt="parquet")
+    copy = root.parent / "gains"
+    shutil.copytree(root, copy)
+    for path in (copy / "runs").glob("*.parquet"):
+        df = pd.read_parquet(path)
+        df["bogie1_acc_z"] *= 1.03
+        df["bogie1_gyro_pitch"] *= 0.97
+        df.to_parquet(path)
+    return root, copy, truth
+
+
+@pytest.mark.spread
+def test_sensor_gain_errors_do_not_move_a_heavily_damped_bogie_bounce(heavily_damped):
+    # The centre acceleration (accelerometer less the gyro's share) keeps 6 % x 0.45 m of the
+    # bogie's pitch acceleration. A gain scales a response and moves no pole; with the rail
+    # bounce as its FRF's only input, this pitch read as bounce (-1.7 % here).
+    root, copy, truth = heavily_damped
+    assert truth["damping_ratios"]["bogie_bounce"] > 0.35
+    exact, off = (identify_in_service(open_campaign(r)).mode("bogie_bounce").frequency_hz for r in (root, copy))
+    assert exact == pytest.approx(truth["frequencies_hz"]["bogie_bounce"], rel=0.01)
+    assert off == pytest.approx(exact, rel=0.002)

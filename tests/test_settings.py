@@ -28,6 +28,8 @@ BAD = [
     (ExcitationIdentifySettings, {"cluster_mac": 1.5}, "cluster_mac"),
     (IdentifySettings, {"carbody_band": (4.0, 0.4)}, "carbody_band"),
     (IdentifySettings, {"min_coherence": -0.1}, "min_coherence"),
+    (IdentifySettings, {"bogie_band_factor": 1.0}, "bogie_band_factor"),
+    (IdentifySettings, {"max_extra_order": 0}, "max_extra_order"),
     (PSOSettings, {"particles": 1}, "particles"),
     (PSOSettings, {"max_velocity": -0.2}, "max_velocity"),
     (CESettings, {"elite_fraction": 1.5}, "elite_fraction"),

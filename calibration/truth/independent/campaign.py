@@ -194,8 +194,13 @@ def _modes_json(p: CarParameters) -> dict:
     settle(m)
     by = linearise(m).by_label()
     return {"frequencies_hz": {k: v[0] for k, v in by.items()},
-            "damped_frequencies_hz": {k: v[1] for k, v in by.items()},
-            "damping_ratios": {k: v[2] for k, v in by.items()}}
+            "damped_frequencies_hz": {k: _finite(v[1]) for k, v in by.items()},
+            "damping_ratios": {k: _finite(v[2]) for k, v in by.items()}}
+
+
+def _finite(x: float) -> float | None:
+    """``x``, or None for an overdamped mode's (NaN) damped frequency and damping ratio."""
+    return float(x) if np.isfinite(x) else None
 
 
 def _journey(p: CarParameters, line: Line, s: IndependentSettings, sensors, fx: _Effects, inst: dict,
