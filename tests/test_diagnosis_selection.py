@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from calibration.diagnosis.in_service.extensions import (BENDING_FAULT_HZ, EXTENSIONS, SENSOR_PLACED_WITHIN_M,
+from calibration.diagnosis.in_service.extensions import (BENDING_FAULT_HZ, COG_CENTRED_WITHIN_M, COG_FAULT_M,
+                                                         EXTENSIONS, SENSOR_FAULT_M, SENSOR_PLACED_WITHIN_M,
                                                          SOFT_TRACK_N_PER_M, combined)
 from calibration.diagnosis.in_service.response import SensorModel
 from calibration.models.car2d import CarExtras
@@ -47,6 +48,19 @@ def test_a_sensor_found_where_it_was_declared_is_its_calibration_not_an_offset()
     assert not ext.is_property({"dx": 3 * SENSOR_PLACED_WITHIN_M, "gyro_gain": 1.0})
     assert not ext.is_property({"dx": -3 * SENSOR_PLACED_WITHIN_M, "gyro_gain": 1.0})
     assert "installation's tolerance" in ext.normal_words()
+
+
+@pytest.mark.parametrize("name, parameter, normal, fault",
+                         [("cog_offset", "cog_offset", COG_CENTRED_WITHIN_M, COG_FAULT_M),
+                          ("sensor_offset", "dx", SENSOR_PLACED_WITHIN_M, SENSOR_FAULT_M)])
+def test_a_size_between_a_normal_vehicles_and_the_smallest_fault_is_in_between(name, parameter, normal, fault):
+    # an 890 kg mass bolted 6.75 m aft moved the centre of mass about 0.2 m (bench seed 8400)
+    ext = EXTENSIONS[name]
+    mid = 0.5 * (normal + fault)
+    assert "smallest fault" in ext.in_between({parameter: mid}) and ext.in_between({parameter: -mid})
+    assert ext.in_between({parameter: 0.5 * normal}) is None  # a property, not a finding at all
+    assert ext.in_between({parameter: 1.01 * fault}) is None
+    assert EXTENSIONS["airspring_reservoir"].in_between({"reservoir_ratio": 0.06}) is None
 
 
 def _hypothesis(gain: float, left: float | None, losses=(), left_after: float | None = 0.05):

@@ -39,9 +39,15 @@ SENSOR_PLACED_WITHIN_M = 0.1
 #: A carbody's centre of mass found this close to its middle [m] is its design's and its
 #: load's (underfloor equipment and tanks are never quite symmetric: the library's intercity
 #: car, its powerpack 1.5 m aft, has its centre 0.12 m aft at mid load and 0.06-0.20 m over
-#: the seed's load ranges); half the catalogue's smallest fault, 0.4 m. Reported as found,
-#: not as a fault.
+#: the seed's load ranges); half the catalogue's smallest fault, COG_FAULT_M. Reported as
+#: found, not as a fault.
 COG_CENTRED_WITHIN_M = 0.2
+#: The effects catalogue's smallest centre-of-mass fault and bogie sensor offset [m]. A size
+#: found between a normal vehicle's and these is named with no more than moderate
+#: confidence: a mass bolted off centre (890 kg 6.75 m aft moves the centre 0.18 m) or a
+#: load set down unevenly gives it as well as a fault does.
+COG_FAULT_M = 0.4
+SENSOR_FAULT_M = 0.3
 #: Underfloor equipment hangs between the bogies: within this distance of the carbody's
 #: centre [m] (bogie centres of passenger cars sit 8-9.5 m from it).
 UNDERFLOOR_M = 8.0
@@ -71,6 +77,9 @@ class Extension:
     always_normal: bool = False
     # every run carries a load of its own (:func:`.response.loaded`), fitted with the rest
     per_run: bool = False
+    # (parameter, size): the catalogue's smallest fault; a size found between normal_within's
+    # bound and this is in between, named with moderate confidence at most
+    fault_from: tuple[str, float] | None = None
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -91,6 +100,17 @@ class Extension:
             return False
         name, bound = self.normal_above
         return parameters.get(name) is not None and parameters[name] > bound
+
+    def in_between(self, parameters: dict) -> str | None:
+        """Why these fitted parameters lie between a normal vehicle's and the catalogue's
+        smallest fault (:attr:`fault_from`), or None."""
+        if self.fault_from is None or self.is_property(parameters):
+            return None
+        name, bound = self.fault_from
+        size = parameters.get(name)
+        if size is None or abs(size) >= bound:
+            return None
+        return f"|{name}| {abs(size):.3g} lies under the catalogue's smallest fault, {bound:g}"
 
     def normal_words(self) -> str:
         """When a fitted size is a property, in words."""
@@ -117,7 +137,7 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
               (ParamRange("dx", -2.5, 2.5, log=False), ParamRange("gyro_gain", 1 - GYRO_SCALE_ERROR,
                                                                   1 + GYRO_SCALE_ERROR)),
               lambda v: (CarExtras(), SensorModel(v["dx"], v["gyro_gain"])),
-              normal_within=("dx", SENSOR_PLACED_WITHIN_M)),
+              normal_within=("dx", SENSOR_PLACED_WITHIN_M), fault_from=("dx", SENSOR_FAULT_M)),
     Extension("carbody_bending", "response",
               "carbody first vertical bending mode (free-free beam shape, its nodes where the carbody's mass "
               "puts them): frequency, damping, modal mass, node",
@@ -126,7 +146,8 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
               lambda v: (CarExtras(**v), SensorModel()), normal_above=("bending_hz", BENDING_FAULT_HZ)),
     Extension("cog_offset", "response", "carbody centre of mass ahead of its geometric centre",
               (ParamRange("cog_offset", -3.0, 3.0, log=False),),
-              lambda v: (CarExtras(**v), SensorModel()), normal_within=("cog_offset", COG_CENTRED_WITHIN_M)),
+              lambda v: (CarExtras(**v), SensorModel()), normal_within=("cog_offset", COG_CENTRED_WITHIN_M),
+              fault_from=("cog_offset", COG_FAULT_M)),
     Extension("airspring_reservoir", "response",
               "air spring reservoir branch: series stiffness ratio to k_s and orifice corner frequency",
               (ParamRange("reservoir_ratio", 0.05, 5.0), ParamRange("reservoir_corner_hz", 0.3, 10.0)),

@@ -117,6 +117,9 @@ def _own(ext: Extension, h: Hypothesis) -> dict:
 
 def _finding(ext: Extension, h: Hypothesis, parameters: dict, confidence: Confidence) -> Finding:
     role = "property" if ext.is_property(parameters) else "cause"
+    between = ext.in_between(parameters)
+    if between and confidence.word == "high":
+        confidence = replace(confidence, word="moderate", why=f"{confidence.why}, but {between}")
     return Finding(ext.name, role, parameters, h.gain, h.best_channel, h, confidence)
 
 
