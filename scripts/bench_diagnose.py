@@ -40,8 +40,9 @@ Expected answers (:func:`_cases`; any answer in neither column is a miss, counte
     case                          right                           counts as a wrong name
     catalogue effect E            E                               any other catalogue name
     clean                         none                            any catalogue name (a false alarm)
-    near-mimic                    unexplained, none               any catalogue name (today's diagnosis
-                                                                  has no confidence: every name counts)
+    near-mimic                    unexplained, none               any catalogue name (written when the
+                                                                  diagnosis gave no confidence; the
+                                                                  confidence is printed beside it)
     A+B                           A+B; one of A, B named is       a catalogue name other than A and B
                                   counted apart ("one of two")
     bogie_only_carbody_bending    unexplained, a `none` whose     none, any catalogue name but
@@ -173,8 +174,8 @@ class Case:
 def _cases() -> tuple[Case, ...]:
     """The expected answers, fixed before any bench run (issue 31's acceptance).
 
-    Today's diagnosis gives no confidence, so on a near-mimic any catalogue name counts as
-    wrong. It names one cause, so for two effects "one of the two named" is counted apart
+    Written when the diagnosis gave no confidence, so on a near-mimic any catalogue name
+    counts as wrong (the summary prints each name's confidence beside it). It named one cause, so for two effects "one of the two named" is counted apart
     from a name outside the two. With the bogie-only set a hidden carbody bending must not
     read as `none` ("the model is adequate"): `unexplained`, a `none` that says carbody
     effects are not observable, or the true name are right."""
@@ -190,6 +191,14 @@ def _cases() -> tuple[Case, ...]:
                     frozenset({"unexplained", NOT_OBSERVABLE, "carbody_bending"}),
                     (cat - {"carbody_bending"}) | {"none"}))
     return tuple(out)
+
+
+def _cause_confidence(row: dict) -> str:
+    """The weakest confidence word among a campaign's named causes (``?`` if none recorded)."""
+    order = ("low", "moderate", "high")
+    words = [f.get("confidence") for f in row.get("findings") or () if f.get("role") == "cause"]
+    words = [w for w in words if w in order]
+    return min(words, key=order.index) if words else "?"
 
 
 def _answer(cause: str, summary=(), hidden=()) -> str:
@@ -333,13 +342,16 @@ def _report_exudyn(results: list[dict], args) -> None:
               f"{sum(r['answer'] == 'unexplained' for r in rs)}")
     mimics = [c.name for c in CASES if c.group == "near_mimic" and c.name in by]
     if mimics:
-        print("\nnear-mimics (no confidence output today: any catalogue name counts as a wrong name):")
+        print("\nnear-mimics (any catalogue name counts as a wrong name, as written before the first run; "
+              "issue 31 asks for none with confidence `high`):")
         for n in mimics:
             rs = by[n]
-            wrong = [r["answer"] for r in rs if r["verdict"] == "wrong"]
-            print(f"  {n:22s} wrong names {len(wrong)}/{len(rs)}" + (f" ({', '.join(wrong)})" if wrong else ""))
-        total = sum(r["verdict"] == "wrong" for n in mimics for r in by[n])
-        print(f"  all near-mimics: wrong names {total}/{sum(len(by[n]) for n in mimics)}")
+            wrong = [f"{r['answer']}, {_cause_confidence(r)}" for r in rs if r["verdict"] == "wrong"]
+            print(f"  {n:22s} wrong names {len(wrong)}/{len(rs)}" + (f" ({'; '.join(wrong)})" if wrong else ""))
+        rs = [r for n in mimics for r in by[n]]
+        total = sum(r["verdict"] == "wrong" for r in rs)
+        high = sum(r["verdict"] == "wrong" and _cause_confidence(r) == "high" for r in rs)
+        print(f"  all near-mimics: wrong names {total}/{len(rs)}, with confidence high {high}/{len(rs)}")
     for c in CASES:
         if c.group in ("combined", "sensor_set") and c.name in by:
             rs = by[c.name]
