@@ -447,7 +447,7 @@ def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, 
     # grows as 1 / sqrt(1 - gamma_ab^2): below ~0.6 Hz the delay 2 L_v / v turns the phase
     # too little across speeds to tell the two rails apart (measured on seed 1: carbody
     # bounce -1.96 % unweighted, -0.62 % weighted, noise-free data).
-    separability = np.clip(1 - np.abs(G[:, 0, 1]) ** 2 / np.real(G[:, 0, 0] * G[:, 1, 1]), 0.0, 1.0)
+    separability = _separability(G, 0, 1)
     in_band = lambda band: (f >= band[0]) & (f <= band[1])  # noqa: E731
     sep_cb = float(np.median(separability[in_band(settings.carbody_band)]))
     sep_bb = float(np.median(separability[in_band(settings.bogie_band)]))
@@ -464,7 +464,7 @@ def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, 
     # reads as part of the bounce FRF. Rail bounce and pitch are two filters of one rail,
     # told apart only by the campaign's spread of speeds: bins are weighted by their
     # separability, and where it is too low over the band the one-input estimate stands.
-    sep_bp = np.clip(1 - np.abs(G[:, 0, 3]) ** 2 / np.real(G[:, 0, 0] * G[:, 3, 3]), 0.0, 1.0)
+    sep_bp = _separability(G, 0, 3)
     trailing = [1] if H.shape[2] == 2 else []
     Hb, cohb, w_bp = H[:, :, :1], coh, 1.0
     if float(np.median(sep_bp[in_band(settings.bogie_band)])) >= settings.min_separability:
@@ -513,6 +513,11 @@ def _fit_input_output(f: np.ndarray, G: np.ndarray, settings: IdentifySettings, 
         elif why:
             why_not[lbl] = why
     return fitted, frfs, why_not
+
+
+def _separability(G: np.ndarray, a: int, b: int) -> np.ndarray:
+    """1 - |coherence of channels a and b|^2 per bin: the share of b that is not a filter of a."""
+    return np.clip(1 - np.abs(G[:, a, b]) ** 2 / np.real(G[:, a, a] * G[:, b, b]), 0.0, 1.0)
 
 
 def _stable_bogie_pole(f: np.ndarray, H: np.ndarray, weights: np.ndarray, band: tuple[float, float],
