@@ -21,7 +21,9 @@ def identify(campaign, args, png: Path, second: Path) -> str:
     write_result(args.out, {**result.to_json(), "campaign_sha256": campaign.fingerprint(), "plot": str(png),
                             "plot_mac": str(mac_png)}, "identification")
     modes = ", ".join(f"{m.label} {m.frequency_hz:.3f} Hz ({100 * m.damping_ratio:.1f} %)" for m in result.modes)
-    return (f"identified {len(result.modes)} modes ({modes}); {len(result.rejected)} peaks rejected; "
+    local = "".join(f"; a resonance at {r.channel} alone, {r.frequency_hz:.2f} Hz (its mounting, not the carbody)"
+                    for r in result.local)
+    return (f"identified {len(result.modes)} modes ({modes}){local}; {len(result.rejected)} peaks rejected; "
             f"{result.frf.n_averages} Welch segments over {result.records} records; wrote "
             f"{names(args.out, png, mac_png)}")
 

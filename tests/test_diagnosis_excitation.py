@@ -206,6 +206,16 @@ def test_misfit_confined_to_one_channel_points_at_it():
     assert "the measurement at acc_f01_c" in alarms[1] and "not the carbody" in alarms[1]
 
 
+def test_a_resonance_at_one_channel_alone_alarms_even_when_the_misfit_is_small():
+    """A resonance identified at one channel alone is the measurement point's: the model
+    has no dynamics for it, so it keeps the answer from `none` and names the channel."""
+    from calibration.identification.excitation import LocalResonance
+
+    alarms = misfit_alarms({"acc_f01_c": 1.2}, [], FAST, local=[LocalResonance(22.75, 0.03, "acc_f02_l", 0.998)])[0]
+    assert len(alarms) == 1 and "22.75 Hz identified at acc_f02_l alone (100% of its shape)" in alarms[0]
+    assert "not a mode of the carbody" in alarms[0]
+
+
 def test_refuses_an_in_service_campaign(tiny_campaign):
     with pytest.raises(InputError, match=r"campaign.toml.*key 'kind'.*stationary_excitation"):
         diagnose_excitation(open_campaign(tiny_campaign))
@@ -263,6 +273,7 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     hypothesis's penalised gain under the bar, the evidence naming the one channel, and
     the other channels explained once it is left out; the plots and the JSON written."""
     truth, result = diagnosed
+    magnitude = BRACKET[2]
     assert truth["effect"]["name"] in UNCATALOGUED
     summary = result.summary
     assert result.cause == "unexplained", summary
@@ -271,6 +282,12 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     assert all(h.penalised_gain < FAST.min_gain for h in result.hypotheses)
     sensor = truth["effect"]["sensor"]
     assert any(f"confined to one channel: {sensor}" in line for line in summary), summary
+    # the bracket's resonance is identified at its sensor alone, and not calibrated to (a
+    # carbody mode it amplifies there may be seen at that sensor alone too)
+    local = result.evidence.local_resonances
+    assert local and {r.channel for r in local} == {sensor}, local
+    assert min(abs(r.frequency_hz / magnitude - 1) for r in local) < 0.02, local
+    assert any(f"identified at {sensor} alone" in line for line in summary), summary
     rest = result.evidence.without_channel  # calibrated without it, the other channels are explained
     assert rest.channel == sensor and rest.channels == len(SENSOR_GRID) - 1
     assert rest.heldout_error_mean <= FAST.noise_alarm < result.evidence.heldout_error_mean

@@ -11,7 +11,7 @@ import pytest
 import scipy.signal
 from threadpoolctl import threadpool_limits
 
-from calibration.identification.excitation import ExcitationIdentifySettings
+from calibration.identification.excitation import ExcitationIdentifySettings, local_channel
 from calibration.identification.ema import FRFEstimate, Mode, frf_h1, lscf, mode_shapes, mpc, peak_picking
 from calibration.identification.plots import plot_mac, plot_stabilisation
 from calibration.signals.modal import mac_matrix
@@ -232,6 +232,20 @@ def test_a_computational_pole_stable_over_orders_is_not_a_mode(pair_test):
     assert min(m.frequency_hz for m in stab.select_modes(**clustering)) > 10.5
     assert min(m.frequency_hz for m in stab.select_modes(**clustering, min_mpc=0.0)) < 8.2
     assert all(mpc(m.shape) > 0.9 for m in stab.select_modes(**clustering))
+
+
+def test_a_shape_on_one_channel_of_many_is_a_local_resonance_and_a_global_shape_is_not():
+    """A pole seen at one channel alone is that measurement point's (a bracket); a bending
+    shape sampled along the car is not, nor anything on too few channels to tell."""
+    s = ExcitationIdentifySettings()
+    x = np.linspace(0.0, 1.0, 27)
+    assert local_channel(np.sin(2 * np.pi * x) + 0.1j, s) is None  # a global mode
+    lone = np.full(27, 0.02 + 0.01j)
+    lone[3] = 1.0
+    k, share = local_channel(lone, s)
+    assert k == 3 and share == pytest.approx(1.0 / (1.0 + 26 * 0.0005))
+    assert local_channel(lone[:5], s) is None  # five channels: too few to call a mode local
+    assert local_channel(np.zeros(27), s) is None
 
 
 def test_phase_collinearity_is_one_for_a_scaled_real_shape_and_small_for_spread_phases():

@@ -26,6 +26,8 @@ BAD = [
     (ExcitationIdentifySettings, {"nperseg": 0}, "nperseg"),
     (ExcitationIdentifySettings, {"orders": (20, 16)}, "orders"),
     (ExcitationIdentifySettings, {"cluster_mac": 1.5}, "cluster_mac"),
+    (ExcitationIdentifySettings, {"local_share": 1.2}, "local_share"),
+    (ExcitationIdentifySettings, {"local_min_channels": 1}, "local_min_channels"),
     (IdentifySettings, {"carbody_band": (4.0, 0.4)}, "carbody_band"),
     (IdentifySettings, {"min_coherence": -0.1}, "min_coherence"),
     (IdentifySettings, {"bogie_band_factor": 1.0}, "bogie_band_factor"),

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .context import Context
+from ...identification.excitation import LocalResonance
 from .evidence import ChannelLeftOut, Evidence, HeldOut, UnpairedMode, confined_channel, heldout
 from .extensions import ExcitationExtension
 from .fitting import Fitted
@@ -108,16 +109,21 @@ def name_cause(hypotheses: Sequence[Hypothesis], alarms: Sequence[str],
 
 
 def misfit_alarms(heldout_error: Mapping[str, float], unpaired: Sequence[UnpairedMode],
-                  settings: ExcitationDiagnosisSettings, *,
-                  without_channel: ChannelLeftOut | None = None) -> tuple[list[str], list[str]]:
+                  settings: ExcitationDiagnosisSettings, *, without_channel: ChannelLeftOut | None = None,
+                  local: Sequence[LocalResonance] = ()) -> tuple[list[str], list[str]]:
     """(alarms, notes): what the baseline leaves systematic, and what is reported without
     alarm, from its held-out E per channel ``heldout_error``, the identified modes it does
-    not pair and, where the misfit is confined to one channel, the baseline calibrated
-    without it. An unpaired identified mode alarms only where the held-out FRF within
-    ``mode_band`` of it is misfitted; one the FRF explains is an identification artefact (a
-    weak or merged mode), one outside the comparison band is not judged."""
+    not pair, the resonances identified at one channel alone (``local``: each alarms, as the
+    model has no dynamics of its measurement points) and, where the misfit is confined to
+    one channel, the baseline calibrated without it. An unpaired identified mode alarms only
+    where the held-out FRF within ``mode_band`` of it is misfitted; one the FRF explains is an
+    identification artefact (a weak or merged mode), one outside the comparison band is not
+    judged."""
     s = settings
     alarms, notes = [], []
+    alarms += [f"a resonance at {r.frequency_hz:.2f} Hz identified at {r.channel} alone ({r.share:.0%} of its shape): "
+               "a resonance of that measurement point (its mounting, e.g. a resilient bracket, or its cable), not a "
+               "mode of the carbody; not calibrated to" for r in local]
     mean = float(np.mean(list(heldout_error.values())))
     if mean > s.noise_alarm:
         worst = sorted(heldout_error.items(), key=lambda kv: -kv[1])

@@ -90,7 +90,8 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
         except (CampaignError, InputError) as exc:  # e.g. no mode identified without it: the check is skipped
             say(f"re-calibration without {one[0]} not possible: {exc}")
     evidence = gather_evidence(ctx, base, held, compare_modes(ctx, base), swarm, left_out)
-    alarms, notes = misfit_alarms(per_channel, evidence.unpaired, s, without_channel=left_out)
+    alarms, notes = misfit_alarms(per_channel, evidence.unpaired, s, without_channel=left_out,
+                                  local=evidence.local_resonances)
     cause, best = name_cause(hypotheses, alarms, s)
     summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses))
     extension_modes = None if best is None else compare_modes(ctx, fits[best.name])

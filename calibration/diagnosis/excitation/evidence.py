@@ -1,7 +1,8 @@
 """Evidence from the baseline: its held-out FRF misfit per channel (normalised, FRAC, rms
 log-magnitude error), the identified modes against the model's (paired by MAC: frequency
-errors, MAC deficits, identified modes the model cannot pair), factors at their bounds, and
-whether the misfit is confined to one channel (then checked by calibrating the baseline
+errors, MAC deficits, identified modes the model cannot pair), resonances identified at one
+channel alone (:class:`~calibration.identification.excitation.LocalResonance`), factors at
+their bounds, and whether the misfit is confined to one channel (then checked by calibrating the baseline
 again without that channel)."""
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ...data.campaign import Campaign
+from ...identification.excitation import LocalResonance
 from ...models.box import BoxModel
 from ...signals.modal import frac, log_error_db, mac_matrix
 from .baseline import SwarmRecord, fit_baseline
@@ -188,6 +190,8 @@ class Evidence:
     training_error_mean : mean over channels of E on the training part [-]
     modal_fit_of_swarm_pct : the baseline swarm's largest identified-frequency error [%]
     identified_in_heldout : frequencies of the modes identified in the held-out part [Hz]
+    local_resonances : resonances identified (training part) at one channel alone: of a
+        measurement point, not of the carbody, so not calibrated to
     """
 
     sensors: tuple[str, ...]
@@ -199,6 +203,7 @@ class Evidence:
     modal_fit_of_swarm_pct: float
     identified_in_heldout: tuple[float, ...]
     without_channel: ChannelLeftOut | None = None
+    local_resonances: tuple[LocalResonance, ...] = ()
 
     @property
     def heldout_error_per_channel(self) -> dict[str, float]:
@@ -224,6 +229,7 @@ class Evidence:
             "parameters_at_bounds": list(self.parameters_at_bounds),
             "modal_fit_of_swarm_pct": self.modal_fit_of_swarm_pct,
             "identified_in_heldout": list(self.identified_in_heldout),
+            "local_resonances": [r.to_json() for r in self.local_resonances],
         }
         if self.without_channel is not None:
             out["without_channel"] = self.without_channel.to_json()
@@ -239,4 +245,4 @@ def gather_evidence(ctx: Context, base: Fitted, held: HeldOut, modes: ModeCompar
                      for r in modes.pairs if not r.paired)
     return Evidence(ctx.sensors, held, base.train_error / len(ctx.sensors), modes, unpaired,
                     tuple(at_bounds(ctx, base)), swarm.modal_fit_pct,
-                    tuple(m.frequency_hz for m in ctx.ident_test.modes), left_out)
+                    tuple(m.frequency_hz for m in ctx.ident_test.modes), left_out, ctx.ident.local)
