@@ -11,8 +11,9 @@ closer than the test can resolve), and FRF peaks with no stable pole. Pole clust
 shape is no real mode's (phase collinearity under 0.7: the fraction's computational poles
 near the band's edges) are not modes and not listed. A mode seen at one channel alone is a
 resonance of that measurement point (a sensor on a resilient bracket, a loose mount), not
-of the carbody: it is reported as a :class:`LocalResonance`, not as a mode to calibrate to. The result does not depend on the
-BLAS thread count or the CPU's kernels beyond round-off (:func:`ema.lscf`).
+of the carbody: it is reported as a :class:`LocalResonance`, not as a mode to calibrate
+to. The result does not depend on the BLAS thread count or the CPU's kernels beyond
+round-off (:func:`ema.lscf`).
 
 Shapes are not re-fitted by LSFD over the band: with a dozen bogie and local panel modes
 in 6-24 Hz that the floor grid barely sees, an LSFD restricted to the selected poles
@@ -187,7 +188,8 @@ class ExcitationIdentification:
             "frf": {"welch_segments": self.frf.n_averages, "records": self.records,
                     "resolution_hz": float(self.frf.frequency[1] - self.frf.frequency[0]),
                     "median_coherence_in_band": float(np.median(self.frf.coherence[
-                        (self.frf.frequency >= self.settings.band[0]) & (self.frf.frequency <= self.settings.band[1])]))},
+                        (self.frf.frequency >= self.settings.band[0])
+                        & (self.frf.frequency <= self.settings.band[1])]))},
         }
 
 
@@ -203,8 +205,8 @@ def _records(campaign: Campaign, force: str, sensors: tuple[str, ...]):
                        np.column_stack([run.channels[c][a + s:a + e] for c in sensors]))
 
 
-def identify_excitation(campaign: Campaign,
-                        settings: ExcitationIdentifySettings = ExcitationIdentifySettings()) -> ExcitationIdentification:
+def identify_excitation(campaign: Campaign, settings: ExcitationIdentifySettings = ExcitationIdentifySettings()
+                        ) -> ExcitationIdentification:
     meta = campaign.meta
     toml = campaign.root / "campaign.toml"
     if meta.excitation is None:
@@ -251,8 +253,9 @@ def identify_excitation(campaign: Campaign,
         nearest = float(min(near, key=lambda x: abs(x - m.frequency_hz))) if near else None
         modes.append(ExcitationMode(f"mode_{k + 1}", float(m.frequency_hz), float(m.damping_ratio), m.shape,
                                 int(m.n_stable), nearest))
+    poles = [m.frequency_hz for m in keep] + [r.frequency_hz for r in local]
     for p in peaks:
-        if not any(abs(p.frequency_hz / hz - 1) < 0.01 for hz in [m.frequency_hz for m in keep + local]):
+        if not any(abs(p.frequency_hz / hz - 1) < 0.01 for hz in poles):
             rejected.append({"frequency_hz": float(p.frequency_hz),
                              "reason": "peak in the FRF sum with no stable pole (not a clear mode)"})
     return ExcitationIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings,
