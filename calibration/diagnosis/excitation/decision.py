@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .context import Context
 from ...identification.excitation import LocalResonance
+from .context import Context
 from .evidence import ChannelLeftOut, Evidence, HeldOut, UnpairedMode, confined_channel, heldout
 from .extensions import ExcitationExtension
 from .fitting import Fitted

@@ -2,8 +2,8 @@
 log-magnitude error), the identified modes against the model's (paired by MAC: frequency
 errors, MAC deficits, identified modes the model cannot pair), resonances identified at one
 channel alone (:class:`~calibration.identification.excitation.LocalResonance`), factors at
-their bounds, and whether the misfit is confined to one channel (then checked by calibrating the baseline
-again without that channel)."""
+their bounds, and whether the misfit is confined to one channel (then checked by
+calibrating the baseline again without that channel)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
