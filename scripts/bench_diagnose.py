@@ -53,10 +53,10 @@ Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
 runs use ``--first-seed 7000`` (seeds 7000-7649), which never reaches a bench seed. A rule
 found on a bench seed is measured on repetitions not yet run (``--from-rep J``: j >= J
-only; e.g. ``--few 6 --from-rep 3`` for j = 3-5). Each hidden magnitude is drawn uniformly
-across its range (``hidden.RANGES``) by ``numpy.random.default_rng([31, seed])``, one draw per hidden
-effect in the order the case lists them (a generator of its own, so the magnitude is not
-a function of the truth's first draws from ``default_rng(seed)``). ``--list`` prints every
+only; e.g. ``--few 6 --from-rep 3`` for j = 3-5). Each hidden magnitude is drawn
+uniformly across its range (``hidden.RANGES``) by ``numpy.random.default_rng([31, seed])``,
+one draw per hidden effect in the order the case lists them (a generator of its own, so
+the magnitude is not a function of the truth's first draws from ``default_rng(seed)``). ``--list`` prints every
 campaign's seed, magnitudes and sensor set without running anything.
 
     python scripts/bench_diagnose.py --truth exudyn [--seeds 10] [--few 3] [--journeys 4]
@@ -179,9 +179,9 @@ def _cases() -> tuple[Case, ...]:
     Written when the diagnosis gave no confidence, so on a near-mimic any catalogue name
     counts as wrong (the summary prints each name's confidence beside it). It named one
     cause, so for two effects "one of the two named" is counted apart from a name outside
-    the two. With the bogie-only set a hidden carbody bending must not
-    read as `none` ("the model is adequate"): `unexplained`, a `none` that says carbody
-    effects are not observable, or the true name are right."""
+    the two. With the bogie-only set a hidden carbody bending must not read as `none` ("the
+    model is adequate"): `unexplained`, a `none` that says carbody effects are not
+    observable, or the true name are right."""
     cat = frozenset(CATALOGUE)
     out = [Case(n, "catalogue", (n,), True, frozenset({n}), cat - {n}) for n in CATALOGUE]
     out.append(Case("clean", "clean", (), True, frozenset({"none"}), cat))
@@ -389,6 +389,9 @@ def _report_exudyn(results: list[dict], args) -> None:
 
 def main_exudyn(args) -> int:
     first = 8000 if args.first_seed is None else args.first_seed
+    if args.from_rep < 0:
+        print(f"--from-rep {args.from_rep}: repetitions count from 0", file=sys.stderr)
+        return 2
     if max(args.seeds, args.few) > SEED_STRIDE:
         print(f"--seeds and --few at most {SEED_STRIDE}: the seed rule gives each case {SEED_STRIDE} seeds",
               file=sys.stderr)

@@ -240,12 +240,10 @@ def identify_excitation(campaign: Campaign, settings: ExcitationIdentifySettings
     rejected += weak
     peaks = ema.peak_picking(frf.frequency, frf.H, settings.band, settings.peak_separation_hz,
                              quantity="acceleration")
-    local = []
-    for m in list(keep):
-        one = local_channel(m.shape, settings)
-        if one is not None:
-            keep.remove(m)
-            local.append(LocalResonance(float(m.frequency_hz), float(m.damping_ratio), sensors[one[0]], one[1]))
+    at_one = [local_channel(m.shape, settings) for m in keep]
+    local = [LocalResonance(float(m.frequency_hz), float(m.damping_ratio), sensors[one[0]], one[1])
+             for m, one in zip(keep, at_one) if one is not None]
+    keep = [m for m, one in zip(keep, at_one) if one is None]
     rejected += [r.to_json() for r in local]
     modes = []
     for k, m in enumerate(keep):
