@@ -16,20 +16,27 @@ import numpy as np
 
 from calibration.data.campaign import read_track_file
 from calibration.data.errors import InputError
-from calibration.models.car2d import CarExtras, carbody_centre, extras_from_json, sensor_model_from_json
+from calibration.models.car2d import (CarExtras, carbody_centre, extras_from_json, floor_sensors_from_json,
+                                     sensor_model_from_json)
 from calibration.models.parameters import CarParameters
 
 from .build import BuiltFMU, build_fmu
 from .variables import CAR_BODIES, ModelSpec, TrackTooShort, car2d_spec
 
 
-def car_sensors(campaign, p: CarParameters, extras: CarExtras | None = None, bogie_dx: float = 0.0) -> tuple:
+def car_sensors(campaign, p: CarParameters, extras: CarExtras | None = None, bogie_dx: float = 0.0,
+                floor: dict | None = None) -> tuple:
     """(name, body, dx) of the campaign's vertical accelerometers on the car's bodies, dx
     from the body centre (the carbody's centre of mass, bogie 1 at +L_v, bogie 2 at -L_v);
-    the bogies' sensors ``bogie_dx`` [m] ahead of their declared places (a calibration's
-    ``sensor_model``)."""
+    the bogies' sensors ``bogie_dx`` [m] ahead of their declared places and each floor
+    sensor of ``floor`` ({name: (dx [m], gain)}) its own dx (a calibration's ``sensor_model``;
+    a gain is the measurement's, not the vehicle's, and the FMU's outputs do not carry it)."""
     centre = {"carbody": carbody_centre(p, extras), "bogie1": p.L_v, "bogie2": -p.L_v}
-    return tuple((s.name, s.body, float(s.position[0]) - centre[s.body] + (bogie_dx if s.body != "carbody" else 0.0))
+    floor = floor or {}
+
+    def moved(s) -> float:
+        return bogie_dx if s.body != "carbody" else floor.get(s.name, (0.0, 1.0))[0]
+    return tuple((s.name, s.body, float(s.position[0]) - centre[s.body] + moved(s))
                  for s in campaign.meta.sensors
                  if s.quantity == "acceleration" and s.direction == "z" and s.body in CAR_BODIES)
 
@@ -67,10 +74,11 @@ def car2d_fmu_spec(calibration: dict, *, track: Path | None = None, campaign=Non
     try:
         extras = extras_from_json(calibration.get("extras") or {})
         bogie_dx, _ = sensor_model_from_json(calibration.get("sensor_model"))
+        floor = floor_sensors_from_json(calibration.get("sensor_model"))
         carbody_centre(p, extras)  # hung bodies leaving the carbody a mass and inertia
     except ValueError as e:
         raise InputError(str(e), key="extras / sensor_model") from None
-    sensors = car_sensors(campaign, p, extras, bogie_dx) if campaign is not None else ()
+    sensors = car_sensors(campaign, p, extras, bogie_dx, floor) if campaign is not None else ()
     return car2d_spec(p.as_dict(), track=track, sensors=sensors, extras=extras)
 
 

@@ -25,8 +25,11 @@ wrong name, written down before the first run:
     0-5 each catalogue effect (carbody_bending, cog_offset, airspring_reservoir,
         sensor_offset, track_flexibility, wheel_out_of_round)  carbody on   --seeds
     6   clean (no hidden effect)                               carbody on   --seeds
-    7-9 near-mimics floor_sensor_offset, rigid_equipment,
-        load_variation                                         carbody on   --few
+    7   floor_sensor_offset (a near-mimic, answered `none` or
+        `unexplained`, until the floor-sensor extension made
+        it a catalogue effect; its seeds j = 0-5 were run as
+        a near-mimic before)                                   carbody on   --seeds
+    8-9 near-mimics rigid_equipment, load_variation            carbody on   --few
     10  cog_offset + carbody_bending                           carbody on   --few
     11  sensor_offset + track_flexibility                      carbody on   --few
     12  bogie_only_carbody_bending: carbody_bending hidden,
@@ -142,7 +145,11 @@ def _table(folder: str) -> list[dict]:
 # --- the independent exudyn truth (issue 31) --------------------------------------------
 
 CATALOGUE = ("carbody_bending", "cog_offset", "airspring_reservoir", "sensor_offset", "track_flexibility",
-             "wheel_out_of_round")
+             "wheel_out_of_round", "floor_sensor_offset")
+#: the catalogue's effects with the case index each had when the bench was first written:
+#: floor_sensor_offset, a near-mimic until the diagnosis had an extension for it, keeps its
+#: index 7 (and so its seeds) after the clean vehicle's 6
+FIRST_SIX = CATALOGUE[:6]
 NOT_OBSERVABLE = "not_observable"  # a `none` whose summary says the sensors cannot see an effect
 
 
@@ -183,10 +190,12 @@ def _cases() -> tuple[Case, ...]:
     model is adequate"): `unexplained`, a `none` that says carbody effects are not
     observable, or the true name are right."""
     cat = frozenset(CATALOGUE)
-    out = [Case(n, "catalogue", (n,), True, frozenset({n}), cat - {n}) for n in CATALOGUE]
+    out = [Case(n, "catalogue", (n,), True, frozenset({n}), cat - {n}) for n in FIRST_SIX]
     out.append(Case("clean", "clean", (), True, frozenset({"none"}), cat))
+    out.append(Case("floor_sensor_offset", "catalogue", ("floor_sensor_offset",), True,
+                    frozenset({"floor_sensor_offset"}), cat - {"floor_sensor_offset"}))
     out += [Case(n, "near_mimic", (n,), True, frozenset({"none", "unexplained"}), cat)
-            for n in ("floor_sensor_offset", "rigid_equipment", "load_variation")]
+            for n in ("rigid_equipment", "load_variation")]
     for a, b in (("cog_offset", "carbody_bending"), ("sensor_offset", "track_flexibility")):
         out.append(Case(f"{a}+{b}", "combined", (a, b), True, frozenset({_answer(f"{a}+{b}")}), cat - {a, b},
                         frozenset({a, b})))

@@ -83,6 +83,8 @@ def test_carbody_effects_are_not_observable_with_bogie_sensors_only(limits):
         assert carbody[ext]["observable"] and carbody[ext]["detectable_beyond"] is not None
     for ext in BOGIE:
         assert bogie[ext]["observable"] and bogie[ext]["detectable_beyond"] is not None
+    # no floor accelerometer, none to be off its place
+    assert not bogie["floor_sensor_offset"]["observable"] and carbody["floor_sensor_offset"]["observable"]
     # a CoG offset reaches the bogies only through the secondary suspension: floor sensors see
     # a weaker one than the bogie sensors can (here none within its range)
     assert carbody["cog_offset"]["detectable_beyond"] is not None

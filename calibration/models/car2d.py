@@ -171,14 +171,33 @@ def extras_from_json(data) -> CarExtras:
 
 
 def sensor_model_from_json(data) -> tuple[float, float]:
-    """A calibration file's ``sensor_model``: (bogie_dx [m], gyro_gain) (ValueError naming what is wrong)."""
+    """A calibration file's ``sensor_model``: (bogie_dx [m], gyro_gain) (ValueError naming what
+    is wrong; its ``floor``, :func:`floor_sensors_from_json`, checked too)."""
     data = {} if data is None else data
-    if not isinstance(data, dict) or set(data) - {"bogie_dx", "gyro_gain"}:
-        raise ValueError("'sensor_model' must map bogie_dx and gyro_gain to numbers")
+    if not isinstance(data, dict) or set(data) - {"bogie_dx", "gyro_gain", "floor"}:
+        raise ValueError("'sensor_model' must map bogie_dx and gyro_gain to numbers (and floor to sensors)")
     for k, v in data.items():
-        if not _finite_number(v):
+        if k != "floor" and not _finite_number(v):
             raise ValueError(f"sensor_model.{k} must be a finite number, got {v!r}")
+    floor_sensors_from_json(data)
     return float(data.get("bogie_dx", 0.0)), float(data.get("gyro_gain", 1.0))
+
+
+def floor_sensors_from_json(data) -> dict[str, tuple[float, float]]:
+    """A calibration file's ``sensor_model.floor``: {floor accelerometer: (dx [m], gain)}, the
+    sensor found dx off its declared x, reading gain x the acceleration there (ValueError
+    naming what is wrong)."""
+    floor = (data or {}).get("floor") or {}
+    if not isinstance(floor, dict):
+        raise ValueError("sensor_model.floor must map sensor names to {dx_m, gain}")
+    out = {}
+    for name, v in floor.items():
+        if not isinstance(v, dict) or set(v) != {"dx_m", "gain"} or not all(_finite_number(x) for x in v.values()) \
+                or not v["gain"] > 0:
+            raise ValueError(f"sensor_model.floor.{name} must be {{dx_m: finite number, gain: positive number}}, "
+                             f"got {v!r}")
+        out[str(name)] = (float(v["dx_m"]), float(v["gain"]))
+    return out
 
 
 def _carbody_rest(p: CarParameters, ex: CarExtras) -> tuple[float, float, float]:

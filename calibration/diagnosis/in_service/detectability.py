@@ -38,7 +38,7 @@ import numpy as np
 
 from ...models.car2d import CarExtras
 from .evidence import DiagnosisData, signal_bands
-from .extensions import EXTENSIONS
+from .extensions import EXTENSIONS, FLOOR_DX_M
 from .response import FIT_NAMES, ResponseFit, SensorModel, channel_power, input_noise_power, response_nrp, transfer
 from .track import collapse_shift
 from .wheels import polygon_error
@@ -85,6 +85,9 @@ RESPONSE_MAGNITUDES = {
     "carbody_bending": Magnitude("bending_hz", "Hz", 18.0, 4.0, {"bending_damping": _EXTRAS.bending_damping,
                                                                  "bending_mass_ratio": _EXTRAS.bending_mass_ratio}),
     "cog_offset": Magnitude("cog_offset", "m", 0.0, 3.0, signed=True, log=False),
+    # one floor sensor off its declared x, the others in place: the limit is the weakest over
+    # the sensors (one near the pitch node shows its offset least)
+    "floor_sensor_offset": Magnitude("dx", "m", 0.0, FLOOR_DX_M, signed=True, log=False),
     # an orifice's corner moves with the flow (a quadratic orifice's with the amplitude): the
     # default corner and 2.5 times below and above it, across the carbody and bogie bands
     "airspring_reservoir": Magnitude("reservoir_ratio", "-", 0.05, 5.0,
@@ -241,28 +244,37 @@ def _weakest(mag: Magnitude, found: list) -> int:
     return min(range(len(found)), key=lambda i: rank(found[i]))
 
 
-def _response_limit(name: str, r: _Responses, bar: float) -> Limit:
-    ext, mag = EXTENSIONS[name], RESPONSE_MAGNITUDES[name]
+def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
+    mag = RESPONSE_MAGNITUDES[name]
 
-    def judge_at(held: dict):
+    def judge_at(held: dict, parameter: str):
         def judge(theta: float) -> tuple[float, float]:
-            out = [r.judge(*ext.make({**held, mag.parameter: sgn * theta}))
+            out = [r.judge(*ext.make({**held, parameter: sgn * theta}))
                    for sgn in ((1.0, -1.0) if mag.signed else (1.0,))]
             return min(o[0] for o in out), min(o[1] for o in out)
         return judge
 
-    variants = (mag.held, *mag.across)
-    found = [_search(mag, judge_at(v), bar) for v in variants]
+    if EXTENSIONS[name].per_sensor is not None:  # the magnitude of one sensor at a time
+        each_sensor = [p.name for p in ext.params if p.name.startswith(f"{mag.parameter}:")]
+        variants, names = tuple({} for _ in each_sensor), each_sensor
+    else:
+        variants, names = (mag.held, *mag.across), [mag.parameter] * (1 + len(mag.across))
+    found = [_search(mag, judge_at(v, n), bar) for v, n in zip(variants, names)]
     k = _weakest(mag, found)
     limit, strong, observable = found[k]
     stronger = "above" if mag.strong > mag.weak else "below"
     held = ", ".join(f"{key} = {v:g}" for key, v in variants[k].items())
     tail = ""
-    if len(variants) > 1:  # the limit at each held value, the weakest taken
+    if EXTENSIONS[name].per_sensor is not None:
+        each = "; ".join(f"{n.split(':', 1)[1]}: {'not detectable' if x[0] is None else f'{x[0]:.3g}'}"
+                         for n, x in zip(names, found))
+        held = f" (one sensor off, the others in place; the weakest of {each})"
+    elif len(variants) > 1:  # the limit at each held value, the weakest taken
         each = "; ".join(f"{', '.join(f'{v:g}' for v in var.values())}: "
                          f"{'not detectable' if x[0] is None else f'{x[0]:.3g}'}" for var, x in zip(variants, found))
         tail = f"; the weakest of {', '.join(mag.held)} = {each}"
-    held = f" ({held} held{tail})" if held else ""
+    if EXTENSIONS[name].per_sensor is None:
+        held = f" ({held} held{tail})" if held else ""
     rng = f"{min(mag.weak, mag.strong):g}-{max(mag.weak, mag.strong):g} {mag.unit}"
     if not observable:
         why = f"not observable with this sensor set: even at {mag.strong:g} {mag.unit}{held} {_carbody_words(r.data)}" \
@@ -345,10 +357,16 @@ def detectability(data: DiagnosisData, base: ResponseFit) -> Detectability:
     for name, ext in EXTENSIONS.items():
         if ext.always_normal:
             continue
+        ext = ext.on(data.layout)
+        if ext is None:
+            mag = RESPONSE_MAGNITUDES[name]
+            limits.append(Limit(name, mag.parameter, mag.unit, None, False, "this campaign has no sensor it acts on",
+                                "above", needs="carbody floor accelerometers"))
+            continue
         bar = s.bar(ext.n_params)
         if ext.kind == "response":
             r = r or _Responses(data, base)
-            limits.append(_response_limit(name, r, bar))
+            limits.append(_response_limit(name, ext, r, bar))
         elif ext.kind == "wheel":
             limits.append(_wheel_limit(data, bar))
         else:

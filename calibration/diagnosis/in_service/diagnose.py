@@ -122,8 +122,8 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     score = scores(ev, data.layout, settings)
     ranked = sorted(score, key=lambda k: -score[k])
     hyps = []
-    for name in ranked[:settings.fit_leading]:
-        h = fit_hypothesis(data, EXTENSIONS[name], base_fit, ev, score[name])
+    for name in [n for n in ranked if EXTENSIONS[n].on(data.layout) is not None][:settings.fit_leading]:
+        h = fit_hypothesis(data, EXTENSIONS[name].on(data.layout), base_fit, ev, score[name])
         stages.update()
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")

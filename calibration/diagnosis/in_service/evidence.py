@@ -237,6 +237,7 @@ def scores(ev: Evidence, lay: Layout, s: DiagnosisSettings) -> dict[str, float]:
     track = ev.track
     sc = {
         "sensor_offset": max([coh[n] for n in bogie] + [0.0]),
+        "floor_sensor_offset": max([ch[n]["low_band_coherence"] for n in carbody] + [0.0]),
         "carbody_bending": fixed_mid / s.peak_alarm,
         "mounted_equipment": 0.5 * fixed_mid / s.peak_alarm + max([coh[n] for n in carbody] + [0.0]),
         "journey_load": max([coh[n] for n in carbody] + [0.0]),

@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ...models.car2d import CarExtras, hung_body
+from .records import Layout
 from .response import ParamRange, SensorModel
 
 KINDS = ("response", "wheel", "track")
@@ -54,6 +55,16 @@ UNDERFLOOR_M = 8.0
 #: The effects catalogue's track flexibility is a soft to medium track, 20-80 MN/m per
 #: wheelset; every track gives, so a stiffer track is reported as found, not as a cause.
 SOFT_TRACK_N_PER_M = 80.0e6
+#: A floor accelerometer's scale error the floor-sensor extension fits, as the gyro's: what a
+#: data sheet and a calibration leave. The independent truth's sensors are within 3 %.
+FLOOR_GAIN_ERROR = 0.05
+#: Floor accelerometers found within this of their declared x [m] are where the drawing puts
+#: them; from FLOOR_FAULT_M (the smallest misplacement the extension names as a fault: a
+#: sensor on the wrong cross-member of a 2-3 m pitch) they are a fault; between, moderate.
+FLOOR_PLACED_WITHIN_M = 0.1
+FLOOR_FAULT_M = 0.3
+#: The largest misplacement searched [m], as for the bogie sensors.
+FLOOR_DX_M = 2.5
 
 
 @dataclass(frozen=True)
@@ -80,16 +91,34 @@ class Extension:
     # (parameter, size): the catalogue's smallest fault; a size found between normal_within's
     # bound and this is in between, named with moderate confidence at most
     fault_from: tuple[str, float] | None = None
+    # the parameters are the campaign's, made from its layout (one pair per floor sensor):
+    # :meth:`on` gives the extension with them, ``params`` stays empty here
+    per_sensor: Callable[[Layout], tuple[ParamRange, ...]] | None = None
+    # sizes derived from the fitted parameters (the worst-placed sensor's |dx|), which
+    # normal_within and fault_from may name
+    sizes: Callable[[dict], dict] | None = None
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"Extension {self.name!r}: kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
-        if self.kind == "response" and (not (self.params or self.per_run) or self.make is None):
+        if self.kind == "response" and (not (self.params or self.per_run or self.per_sensor) or self.make is None):
             raise ValueError(f"Extension {self.name!r}: a response extension needs params (or per_run) and make")
+
+    def on(self, lay: Layout) -> Extension | None:
+        """The extension for the campaign of layout ``lay``: itself, or with the parameters
+        of ``lay``'s sensors (:attr:`per_sensor`); None when it has no sensor to act on."""
+        if self.per_sensor is None:
+            return self
+        params = self.per_sensor(lay)
+        return replace(self, params=params, per_sensor=None) if params else None
+
+    def _sized(self, parameters: dict) -> dict:
+        return {**parameters, **self.sizes(parameters)} if self.sizes is not None else parameters
 
     def is_property(self, parameters: dict) -> bool:
         """Do these fitted parameters describe a property of a normal vehicle or track
         (:attr:`normal_above`) rather than the fault the extension is named after?"""
+        parameters = self._sized(parameters)
         if self.always_normal:
             return True
         if self.normal_within is not None:
@@ -106,6 +135,7 @@ class Extension:
         smallest fault (:attr:`fault_from`), or None."""
         if self.fault_from is None or self.is_property(parameters):
             return None
+        parameters = self._sized(parameters)
         name, bound = self.fault_from
         size = parameters.get(name)
         if size is None or abs(size) >= bound:
@@ -165,6 +195,13 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
               "the load (passengers, luggage, tanks' fill) changing between journeys: the carbody's mass, "
               "inertia and bending mass, and the levelled air springs' stiffness, per journey",
               (), lambda v: (CarExtras(), SensorModel()), always_normal=True, per_run=True),
+    Extension("floor_sensor_offset", "response",
+              "carbody floor accelerometers off their declared x (dx per sensor), their gains within a "
+              "calibration's tolerance",
+              make=lambda v: (CarExtras(), floor_sensors(v)), per_sensor=lambda lay: floor_params(lay),
+              sizes=lambda v: {"worst_dx_m": max((abs(x) for k, x in v.items() if k.startswith("dx:")),
+                                                 default=0.0)},
+              normal_within=("worst_dx_m", FLOOR_PLACED_WITHIN_M), fault_from=("worst_dx_m", FLOOR_FAULT_M)),
     Extension("wheel_out_of_round", "wheel",
               "polygonal wheel on one wheelset of the leading bogie: wavelength, radius amplitude, wheelset"),
     Extension("track_flexibility", "track",
@@ -183,10 +220,25 @@ def mounted(mass: float, x: float, mount_hz: float, damping: float) -> CarExtras
     return CarExtras(bodies=(body,), elements=(mount,), hung_in_m_v=True)
 
 
+def floor_params(lay: Layout) -> tuple[ParamRange, ...]:
+    """A position error and a gain per vertical floor accelerometer of ``lay``."""
+    return tuple(r for o in lay.responses if o.body == "carbody" and o.kind == "acceleration"
+                 for r in (ParamRange(f"dx:{o.name}", -FLOOR_DX_M, FLOOR_DX_M, log=False),
+                           ParamRange(f"gain:{o.name}", 1 - FLOOR_GAIN_ERROR, 1 + FLOOR_GAIN_ERROR)))
+
+
+def floor_sensors(values: dict) -> SensorModel:
+    """The floor accelerometers of ``values`` ({"dx:NAME": m, "gain:NAME": -}; a sensor
+    with one of the two takes the other's neutral value)."""
+    names = sorted({k.split(":", 1)[1] for k in values if k.startswith(("dx:", "gain:"))})
+    return SensorModel(floor=tuple((n, float(values.get(f"dx:{n}", 0.0)), float(values.get(f"gain:{n}", 1.0)))
+                                   for n in names))
+
+
 def combined(first: Extension, then: Extension) -> Extension:
     """Two response extensions as one: ``first``'s parameters and ``then``'s, each making
-    its own additions to the car and its sensors (the second's sensor model, where it has
-    one, replacing the default)."""
+    its own additions to the car and its sensors (what the second sets taking the place of
+    the first's)."""
     if first.kind != "response" or then.kind != "response":
         raise ValueError(f"only response extensions combine, not {first.kind} and {then.kind}")
     names_a = {r.name for r in first.params}
@@ -194,9 +246,12 @@ def combined(first: Extension, then: Extension) -> Extension:
     def make(v):
         ex_a, se_a = first.make({k: x for k, x in v.items() if k in names_a})
         ex_b, se_b = then.make({k: x for k, x in v.items() if k not in names_a})
-        changed = {f.name: getattr(ex_b, f.name) for f in fields(ex_b)
-                   if getattr(ex_b, f.name) != getattr(CarExtras(), f.name)}
-        return replace(ex_a, **changed), se_b if se_b != SensorModel() else se_a
+        return _joined(ex_a, ex_b, CarExtras()), _joined(se_a, se_b, SensorModel())
 
     return Extension(f"{first.name}+{then.name}", "response", f"{first.description}; {then.description}",
                      first.params + then.params, make, per_run=first.per_run or then.per_run)
+
+
+def _joined(a, b, default):
+    """``a`` with every field ``b`` sets away from ``default`` taken from ``b``."""
+    return replace(a, **{f.name: getattr(b, f.name) for f in fields(b) if getattr(b, f.name) != getattr(default, f.name)})

@@ -151,7 +151,8 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         names = data.layout.response_names
         params = fit.values
         model = {"parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras),
-                 "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}}
+                 "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain,
+                             "floor": fit.sensors.floor_json()}}
         at = [n for n in fit.at_bounds if n in params]
         left, _ = channel_evidence(data, fit, ev.masks)
         was = ev.channels if added_to is None else channel_evidence(data, prev, ev.masks)[0]

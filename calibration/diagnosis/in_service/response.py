@@ -35,21 +35,32 @@ LOAD_RANGE = 0.25
 
 @dataclass(frozen=True)
 class SensorModel:
-    """Where the bogie sensors really are and how the gyros read: ``dx`` [m] added to every
-    bogie accelerometer's declared x, ``gyro_gain`` multiplying every pitch gyro."""
+    """Where the sensors really are and how they read: ``dx`` [m] added to every bogie
+    accelerometer's declared x, ``gyro_gain`` multiplying every pitch gyro, and ``floor``:
+    (name, dx [m], gain) of carbody floor accelerometers, each off its declared x by its
+    own dx and reading gain x the acceleration there."""
 
     dx: float = 0.0
     gyro_gain: float = 1.0
+    floor: tuple[tuple[str, float, float], ...] = ()
+
+    def floor_json(self) -> dict:
+        """{sensor: {"dx_m", "gain"}} of the floor accelerometers a finding moved."""
+        return {n: {"dx_m": dx, "gain": g} for n, dx, g in self.floor}
 
 
 def model_outputs(lay: Layout, sensors: SensorModel) -> tuple[list[Output], np.ndarray]:
+    floor = {n: (dx, g) for n, dx, g in sensors.floor}
     outs, gains = [], []
     for o in lay.responses:
+        gain = sensors.gyro_gain if o.kind == "pitch_rate" else 1.0
         if o.kind == "acceleration" and o.body.startswith("bogie"):
-            outs.append(replace(o, x=o.x + sensors.dx))
-        else:
-            outs.append(o)
-        gains.append(sensors.gyro_gain if o.kind == "pitch_rate" else 1.0)
+            o = replace(o, x=o.x + sensors.dx)
+        elif o.kind == "acceleration" and o.name in floor:
+            dx, gain = floor[o.name]
+            o = replace(o, x=o.x + dx)
+        outs.append(o)
+        gains.append(gain)
     return outs, np.array(gains)
 
 

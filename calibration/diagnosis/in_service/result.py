@@ -58,7 +58,8 @@ class InServiceDiagnosis:
         fit = self.extended or self.baseline
         out = {"model": "car2d", "parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras)}
         if fit.sensors != SensorModel():
-            out["sensor_model"] = {"bogie_dx": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain}
+            out["sensor_model"] = {"bogie_dx": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain,
+                                   **({"floor": fit.sensors.floor_json()} if fit.sensors.floor else {})}
         out["not_in_model"] = [f.name for f in self.findings if f.hypothesis.kind != "response"]
         return out
 

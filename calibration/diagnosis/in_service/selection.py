@@ -205,7 +205,8 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
     while causes() < MAX_RESPONSE_STEPS:
         tried = []
         for name, e in EXTENSIONS.items():
-            if e.kind != "response" or name in used:
+            e = e.on(data.layout)
+            if e is None or e.kind != "response" or name in used:
                 continue
             h = fit_hypothesis(data, combined(current.extension, e), base_fit, ev, 0.0, added_to=current)
             say(f"{' + '.join(used)} + {name}: held-out gain {h.gain:.1%} on {h.best_channel}")

@@ -10,11 +10,12 @@ what each one does to this truth is its own:
 * ``sensor_offset`` [m]: the bogie accelerometer and gyro MAGNITUDE off their declared x (0.3-1.5);
 * ``track_flexibility`` [N/m]: soft ballast: track stiffness per wheelset MAGNITUDE (20e6-80e6);
 * ``wheel_out_of_round`` [m]: a polygonal wheelset (1 or 2): dominant order 1-3 of radius
-  amplitude MAGNITUDE plus three higher harmonics of 10-40 % of it (0.05e-3-0.3e-3).
+  amplitude MAGNITUDE plus three higher harmonics of 10-40 % of it (0.05e-3-0.3e-3);
+* ``floor_sensor_offset`` [m]: each carbody floor accelerometer up to MAGNITUDE off its
+  declared x (0.3-1.5).
 
 Near-mimics outside the catalogue (the diagnosis has no extension for them):
 
-* ``floor_sensor_offset`` [m]: each carbody floor accelerometer up to MAGNITUDE off its declared x;
 * ``rigid_equipment`` [kg]: a mass of MAGNITUDE bolted rigidly to the floor at a drawn x;
 * ``load_variation`` [-]: the journeys' payload differs by up to +-MAGNITUDE x the carbody mass;
 
@@ -45,7 +46,7 @@ RANGES = {  # name: (low, high, default, unit, catalogued)
     "sensor_offset": (0.3, 1.5, 0.8, "m", True),
     "track_flexibility": (20.0e6, 80.0e6, 40.0e6, "N/m", True),
     "wheel_out_of_round": (0.05e-3, 0.3e-3, 0.15e-3, "m", True),
-    "floor_sensor_offset": (0.3, 1.5, 0.8, "m", False),
+    "floor_sensor_offset": (0.3, 1.5, 0.8, "m", True),
     "rigid_equipment": (300.0, 1000.0, 700.0, "kg", False),
     "load_variation": (0.05, 0.2, 0.12, "-", False),
 }
