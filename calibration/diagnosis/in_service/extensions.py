@@ -102,7 +102,8 @@ class Extension:
         if self.kind not in KINDS:
             raise ValueError(f"Extension {self.name!r}: kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
         if self.kind == "response" and (not (self.params or self.per_run or self.per_sensor) or self.make is None):
-            raise ValueError(f"Extension {self.name!r}: a response extension needs params (or per_run) and make")
+            raise ValueError(f"Extension {self.name!r}: a response extension needs params (or per_run or "
+                             "per_sensor) and make")
 
     def on(self, lay: Layout) -> Extension | None:
         """The extension for the campaign of layout ``lay``: itself, or with the parameters
@@ -161,6 +162,26 @@ class Extension:
         return {"wheel": 3, "track": 2}.get(self.kind, len(self.params) + self.per_run)
 
 
+def floor_params(lay: Layout) -> tuple[ParamRange, ...]:
+    """A position error and a gain per vertical floor accelerometer of ``lay``."""
+    return tuple(r for o in lay.responses if o.body == "carbody" and o.kind == "acceleration"
+                 for r in (ParamRange(f"dx:{o.name}", -FLOOR_DX_M, FLOOR_DX_M, log=False),
+                           ParamRange(f"gain:{o.name}", 1 - FLOOR_GAIN_ERROR, 1 + FLOOR_GAIN_ERROR)))
+
+
+def floor_sensors(values: dict) -> SensorModel:
+    """The floor accelerometers of ``values`` ({"dx:NAME": m, "gain:NAME": -}; a sensor
+    with one of the two takes the other's neutral value)."""
+    names = sorted({k.split(":", 1)[1] for k in values if k.startswith(("dx:", "gain:"))})
+    return SensorModel(floor=tuple((n, float(values.get(f"dx:{n}", 0.0)), float(values.get(f"gain:{n}", 1.0)))
+                                   for n in names))
+
+
+def _worst_dx(values: dict) -> dict:
+    """The worst-placed floor sensor's |dx| [m], the size the fault rules read."""
+    return {"worst_dx_m": max((abs(x) for k, x in values.items() if k.startswith("dx:")), default=0.0)}
+
+
 EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
     Extension("sensor_offset", "response",
               "bogie accelerometer off its declared x (dx) and pitch gyro scale error (gyro_gain)",
@@ -198,9 +219,7 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
     Extension("floor_sensor_offset", "response",
               "carbody floor accelerometers off their declared x (dx per sensor), their gains within a "
               "calibration's tolerance",
-              make=lambda v: (CarExtras(), floor_sensors(v)), per_sensor=lambda lay: floor_params(lay),
-              sizes=lambda v: {"worst_dx_m": max((abs(x) for k, x in v.items() if k.startswith("dx:")),
-                                                 default=0.0)},
+              make=lambda v: (CarExtras(), floor_sensors(v)), per_sensor=floor_params, sizes=_worst_dx,
               normal_within=("worst_dx_m", FLOOR_PLACED_WITHIN_M), fault_from=("worst_dx_m", FLOOR_FAULT_M)),
     Extension("wheel_out_of_round", "wheel",
               "polygonal wheel on one wheelset of the leading bogie: wavelength, radius amplitude, wheelset"),
@@ -218,21 +237,6 @@ def mounted(mass: float, x: float, mount_hz: float, damping: float) -> CarExtras
     k = mass * (2 * np.pi * mount_hz) ** 2
     body, mount = hung_body("equipment", mass, x, k, 2 * damping * np.sqrt(k * mass))
     return CarExtras(bodies=(body,), elements=(mount,), hung_in_m_v=True)
-
-
-def floor_params(lay: Layout) -> tuple[ParamRange, ...]:
-    """A position error and a gain per vertical floor accelerometer of ``lay``."""
-    return tuple(r for o in lay.responses if o.body == "carbody" and o.kind == "acceleration"
-                 for r in (ParamRange(f"dx:{o.name}", -FLOOR_DX_M, FLOOR_DX_M, log=False),
-                           ParamRange(f"gain:{o.name}", 1 - FLOOR_GAIN_ERROR, 1 + FLOOR_GAIN_ERROR)))
-
-
-def floor_sensors(values: dict) -> SensorModel:
-    """The floor accelerometers of ``values`` ({"dx:NAME": m, "gain:NAME": -}; a sensor
-    with one of the two takes the other's neutral value)."""
-    names = sorted({k.split(":", 1)[1] for k in values if k.startswith(("dx:", "gain:"))})
-    return SensorModel(floor=tuple((n, float(values.get(f"dx:{n}", 0.0)), float(values.get(f"gain:{n}", 1.0)))
-                                   for n in names))
 
 
 def combined(first: Extension, then: Extension) -> Extension:
@@ -254,4 +258,5 @@ def combined(first: Extension, then: Extension) -> Extension:
 
 def _joined(a, b, default):
     """``a`` with every field ``b`` sets away from ``default`` taken from ``b``."""
-    return replace(a, **{f.name: getattr(b, f.name) for f in fields(b) if getattr(b, f.name) != getattr(default, f.name)})
+    return replace(a, **{f.name: getattr(b, f.name) for f in fields(b)
+                         if getattr(b, f.name) != getattr(default, f.name)})
