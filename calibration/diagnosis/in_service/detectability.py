@@ -86,7 +86,7 @@ RESPONSE_MAGNITUDES = {
                                                                  "bending_mass_ratio": _EXTRAS.bending_mass_ratio}),
     "cog_offset": Magnitude("cog_offset", "m", 0.0, 3.0, signed=True, log=False),
     # one floor sensor off its declared x, the others in place: the limit is the weakest over
-    # the sensors (one near the pitch node shows its offset least)
+    # the sensors (which one shows its offset least depends on the car and its modes)
     "floor_sensor_offset": Magnitude("dx", "m", 0.0, FLOOR_DX_M, signed=True, log=False),
     # an orifice's corner moves with the flow (a quadratic orifice's with the amplitude): the
     # default corner and 2.5 times below and above it, across the carbody and bogie bands
@@ -246,6 +246,7 @@ def _weakest(mag: Magnitude, found: list) -> int:
 
 def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
     mag = RESPONSE_MAGNITUDES[name]
+    per_sensor = EXTENSIONS[name].per_sensor is not None
 
     def judge_at(held: dict, parameter: str):
         def judge(theta: float) -> tuple[float, float]:
@@ -254,7 +255,7 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
             return min(o[0] for o in out), min(o[1] for o in out)
         return judge
 
-    if EXTENSIONS[name].per_sensor is not None:  # the magnitude of one sensor at a time
+    if per_sensor:  # the magnitude of one sensor at a time
         each_sensor = [p.name for p in ext.params if p.name.startswith(f"{mag.parameter}:")]
         variants, names = tuple({} for _ in each_sensor), each_sensor
     else:
@@ -265,7 +266,7 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
     stronger = "above" if mag.strong > mag.weak else "below"
     held = ", ".join(f"{key} = {v:g}" for key, v in variants[k].items())
     tail = ""
-    if EXTENSIONS[name].per_sensor is not None:
+    if per_sensor:
         each = "; ".join(f"{n.split(':', 1)[1]}: {'not detectable' if x[0] is None else f'{x[0]:.3g}'}"
                          for n, x in zip(names, found))
         held = f" (one sensor off, the others in place; the weakest of {each})"
@@ -273,7 +274,7 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
         each = "; ".join(f"{', '.join(f'{v:g}' for v in var.values())}: "
                          f"{'not detectable' if x[0] is None else f'{x[0]:.3g}'}" for var, x in zip(variants, found))
         tail = f"; the weakest of {', '.join(mag.held)} = {each}"
-    if EXTENSIONS[name].per_sensor is None:
+    if not per_sensor:
         held = f" ({held} held{tail})" if held else ""
     rng = f"{min(mag.weak, mag.strong):g}-{max(mag.weak, mag.strong):g} {mag.unit}"
     if not observable:
@@ -358,7 +359,7 @@ def detectability(data: DiagnosisData, base: ResponseFit) -> Detectability:
         if ext.always_normal:
             continue
         ext = ext.on(data.layout)
-        if ext is None:
+        if ext is None:  # an extension of the campaign's floor sensors, and it has none
             mag = RESPONSE_MAGNITUDES[name]
             limits.append(Limit(name, mag.parameter, mag.unit, None, False, "this campaign has no sensor it acts on",
                                 "above", needs="carbody floor accelerometers"))
