@@ -122,8 +122,9 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     score = scores(ev, data.layout, settings)
     ranked = sorted(score, key=lambda k: -score[k])
     hyps = []
-    for name in [n for n in ranked if EXTENSIONS[n].on(data.layout) is not None][:settings.fit_leading]:
-        h = fit_hypothesis(data, EXTENSIONS[name].on(data.layout), base_fit, ev, score[name])
+    on_car = {n: e.on(data.layout) for n, e in EXTENSIONS.items()}  # None: no sensor of the campaign's to act on
+    for name in [n for n in ranked if on_car[n] is not None][:settings.fit_leading]:
+        h = fit_hypothesis(data, on_car[name], base_fit, ev, score[name])
         stages.update()
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
