@@ -3,7 +3,9 @@ the cause, the extended model and the gain.
 
 1. **Data.** Gap-free records of rail input (axle boxes), responses (bogie and carbody
    sensors) and the axle-box consistency channel (:mod:`.records`); runs split into
-   training (odd) and held-out (even) runs; a single run is split in halves.
+   training (odd) and held-out (even) runs; a single run is split in halves. The wheel
+   polygon is decided here, on the consistency channel: a trailing bogie's rail is taken
+   from a round wheelset.
 2. **Baseline.** The user's calibration when given, else the campaign's priors (a
    campaign with neither is refused; parameters neither gives are the seed's car's and the
    summary lists them, :mod:`.baseline`): its masses, inertias, stiffnesses and dampings
@@ -49,6 +51,7 @@ speed less their sampling variance, held out by speed (:func:`.track.speed_folds
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 
 from ...data.campaign import Campaign
@@ -61,7 +64,7 @@ from .detectability import Detectability, detectability
 from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, notes, scores
 from .extensions import EXTENSIONS
 from .hypotheses import Hypothesis, fit_hypothesis
-from .records import BOGIE_SPACING_SHARE, Record, layout, read_records, statistics
+from .records import BOGIE_SPACING_SHARE, Layout, Record, layout, read_records, statistics
 from .response import fit_response
 from .result import InServiceDiagnosis
 from .selection import Selection, select
@@ -78,10 +81,35 @@ def _halves(records: list[Record]) -> list[Record]:
     return split
 
 
-def _data(campaign: Campaign, settings: DiagnosisSettings, start: BaselineStart, say) -> DiagnosisData:
+def _data(campaign: Campaign, settings: DiagnosisSettings, start: BaselineStart, say
+          ) -> tuple[DiagnosisData, Hypothesis | None]:
     """The campaign read into records and band statistics, split into training (odd) and
-    held-out (even) runs, with the baseline's start and search bounds."""
+    held-out (even) runs, with the baseline's start and search bounds; and the wheel
+    polygon's hypothesis (None: the campaign has no axle boxes to see one).
+
+    The wheels are decided first, on the consistency channel alone: a leading wheelset
+    found out of round carries its polygon in its axle boxes, so a trailing wheelset
+    without axle boxes takes its rail from the round one (:meth:`.records.Layout.rail_sources`)
+    and the records are read again. Otherwise the polygon would drive the model's trailing
+    bogie, which has none, and its response would stand as a carbody model error for a
+    response extension to absorb (bench seed 8257: floor sensor gains on their bounds)."""
     lay = layout(campaign)
+    data = _read(campaign, lay, settings, start, say)
+    ext = EXTENSIONS["wheel_out_of_round"].on(lay)
+    if ext is None:
+        return data, None
+    wheel = fit_hypothesis(data, ext, None, None, 0.0)
+    trailing_unsensed = not (lay.axle["axle3"] and lay.axle["axle4"])
+    if wheel.passes(settings) and trailing_unsensed:
+        w = wheel.fit.wheelset
+        say(f"wheelset {w} out of round: the trailing bogie's rail is taken from wheelset {3 - w}")
+        data = _read(campaign, replace(lay, out_of_round=w), settings, start, say)
+    return data, wheel
+
+
+def _read(campaign: Campaign, lay: Layout, settings: DiagnosisSettings, start: BaselineStart, say
+          ) -> DiagnosisData:
+    """:func:`_data`'s records and statistics for layout ``lay``."""
     records = read_records(campaign, lay, settings.records, progress=say)
     if len(campaign.run_ids) == 1:
         records = _halves(records)
@@ -109,7 +137,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     say = progress or (lambda msg: None)
     start = baseline_start(campaign, settings.prior_spread, calibration, calibration_path)
     stages = counter(progress, 3 + settings.fit_leading, "in-service diagnosis", unit="stage")
-    data = _data(campaign, settings, start, say)
+    data, wheel = _data(campaign, settings, start, say)
     stages.update()
     stats = data.stats
     say(f"{len(data.records)} records, {sum(stats.seconds.values()):.0f} s in {len(stats.S)} (run, speed) cells; "
@@ -124,7 +152,10 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     hyps = []
     on_car = {n: e.on(data.layout) for n, e in EXTENSIONS.items()}  # None: no sensor of the campaign's to act on
     for name in [n for n in ranked if on_car[n] is not None][:settings.fit_leading]:
-        h = fit_hypothesis(data, on_car[name], base_fit, ev, score[name])
+        if name == "wheel_out_of_round":  # fitted in _data, on the consistency channel the records keep
+            h = replace(wheel, evidence_score=score[name])
+        else:
+            h = fit_hypothesis(data, on_car[name], base_fit, ev, score[name])
         stages.update()
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
@@ -141,6 +172,9 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     summary = _summary(cause, sel, words + notes(left, settings), ev, hyps, settings, detect, intervals) \
         + start.describe()
     lay = data.layout
+    if lay.out_of_round is not None:
+        summary.append(f"rail input: wheelset {lay.out_of_round} is out of round, so the trailing bogie's rail is "
+                       f"taken from wheelset {3 - lay.out_of_round}'s axle boxes")
     if lay.length_assumed and lay.carbody_sensed:
         summary.append(f"carbody length: campaign.toml's [vehicle] gives none; a bending's shape assumed "
                        f"{lay.length:.1f} m (the bogie spacing over {BOGIE_SPACING_SHARE})")

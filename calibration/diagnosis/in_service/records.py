@@ -5,7 +5,8 @@ The model's input is measured: wheelsets on a rigid rail move with the rail, so 
 vertical axle-box accelerations of a wheelset (the mean of its left and right boxes) are
 the rail acceleration under it. The trailing bogie's wheelsets, when they carry no
 sensors, run over the same rail 2 L_v later in distance; their input is the leading
-wheelset's, delayed by distance (the distance comes from integrating the speed signal,
+wheelset's (the round one's, when the diagnosis found the other out of round: its axle
+boxes carry its polygon), delayed by distance (the distance comes from integrating the speed signal,
 whose short-term error is far smaller than GPS distance's) and scaled by the squared speed
 ratio (a rail curvature z'' gives an acceleration v^2 z''). Every other sensor (bogie and
 carbody accelerometers, pitch gyros) is a response the model predicts.
@@ -93,11 +94,27 @@ class Layout:
     L_b: float  # [m] bogie semi-wheelbase
     length: float  # [m] carbody length (the shape of its bending)
     length_assumed: bool = False  # campaign.toml gives none: BOGIE_SPACING_SHARE assumed
+    out_of_round: int | None = None  # leading wheelset (1 or 2) found out of round (:meth:`rail_sources`)
 
     @property
     def carbody_sensed(self) -> bool:
         """Does a carbody (floor) sensor take part?"""
         return any(o.body == "carbody" for o in self.responses)
+
+    def rail_sources(self) -> tuple[tuple[str, str | None, float], ...]:
+        """Where each wheelset's rail input comes from: (wheelset, leading wheelset whose
+        axle boxes it is taken from, None for its own, and the delay [m]). A trailing
+        wheelset without axle boxes sees the rail a leading one measured, 2 L_v earlier; when
+        a leading wheelset is out of round its axle boxes carry its polygon, which the
+        trailing wheelsets do not have, so both take the round one's rail."""
+        v, b = 2 * self.L_v, 2 * self.L_b
+        if self.out_of_round == 1:
+            trailing = (("axle3", "axle2", v - b), ("axle4", "axle2", v))
+        elif self.out_of_round == 2:
+            trailing = (("axle3", "axle1", v), ("axle4", "axle1", v + b))
+        else:
+            trailing = (("axle3", "axle1", v), ("axle4", "axle2", v))
+        return (("axle1", None, 0.0), ("axle2", None, 0.0)) + trailing
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -231,8 +248,7 @@ def _record(run, i0, i1, lay: Layout, fs_in, ratio, settings) -> Record | None:
     mean = {k: np.mean([run.channels[c][i0:i1] for c in names], axis=0) if names else None
             for k, names in lay.axle.items()}
     rails, first = [], 0
-    for j, (k, src, delay) in enumerate((("axle1", None, 0.0), ("axle2", None, 0.0),
-                                         ("axle3", "axle1", 2 * lay.L_v), ("axle4", "axle2", 2 * lay.L_v))):
+    for k, src, delay in lay.rail_sources():
         if mean[k] is not None:
             rails.append(mean[k])
         else:
