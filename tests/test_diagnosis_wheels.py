@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from calibration.data.runs import Run
-from calibration.diagnosis.in_service.records import Layout, RecordSettings, read_records
+from calibration.diagnosis.in_service.records import Layout, Record, RecordSettings, read_records
+from calibration.diagnosis.in_service.wheels import fit_polygon, polygon_error
 from calibration.models.car2d import Output
 
 L_V, L_B, V, FS = 9.5, 1.25, 30.0, 400.0
@@ -71,3 +72,30 @@ def test_a_polygon_found_on_a_leading_wheelset_stays_out_of_the_trailing_bogies_
         assert _polygon_left(after, row, behind[row]) < 0.02
     # a longer delay (wheelset 4 from wheelset 1) costs the record the wheelbase at its start, no more
     assert 0.0 <= after.distance[0] - before.distance[0] <= 2 * L_B + V / settings.fs
+
+
+def test_a_polygon_of_several_orders_is_fitted_as_one_wheels_harmonics():
+    """A wheel of circumference 2.64 m out of round in orders 2 and 4 (0.2 and 0.08 mm):
+    order 4 is the stronger line in curvature (amplitude x order^2), order 2 the larger
+    radius deviation. Both are the wheel's, and removing both leaves the noise."""
+    rng = np.random.default_rng(4)
+    fs, v, c = 200.0, 30.0, 2.64
+    t = np.arange(0, 400.0, 1 / fs)
+    d = v * t
+    orders = {2: 0.2e-3, 4: 0.08e-3}  # radius amplitude [m] per order
+    curvature = sum(a * (2 * np.pi * m / c) ** 2 * np.cos(2 * np.pi * m * d / c + m) for m, a in orders.items())
+    noise = rng.normal(0, 0.05, (3, t.size))
+    z = np.vstack([curvature * v * v + noise[0], noise[1], curvature * v * v + noise[2]])  # carried by wheelset 2
+    rows = {"consistency": 0, "axle1_mean": 1, "axle2_mean": 2}
+    rec = Record("r1", 0.0, np.full(t.size, v), d, z)
+    poly = fit_polygon([rec], rows, {"r1"})
+    assert poly.wheelset == 2
+    assert poly.wavelength == pytest.approx(c / 4, rel=0.005)  # the strongest line in curvature
+    assert poly.circumference == pytest.approx(c, rel=0.005)
+    radii = {round(c / w): r["radius_amplitude_m"] for w, r in zip((w for w, _ in poly.lines),
+                                                                      poly.to_json()["harmonics"])}
+    assert radii[2] == pytest.approx(orders[2], rel=0.05) and radii[4] == pytest.approx(orders[4], rel=0.05)
+    assert poly.radius_amplitude == pytest.approx(orders[2], rel=0.05)
+    one_line = type(poly)(poly.wavelength, poly.curvature_amplitude, 2, 0.0, 0.0)
+    noise_only = np.mean(noise[0] ** 2 / v ** 4)
+    assert polygon_error([rec], rows, {"r1"}, poly) < 1.5 * noise_only < polygon_error([rec], rows, {"r1"}, one_line)
