@@ -251,6 +251,17 @@ def test_campaign_with_two_effects_and_floor_sensors(tmp_path):
     assert truth["frequencies_hz"]["carbody_bending"] > 12.0
 
 
+@pytest.mark.slow(seconds=10)
+def test_the_worst_placed_floor_sensor_is_the_magnitude_off(tmp_path):
+    settings = IndependentSettings(journeys=1, line=LineSpec(length=2_000.0), carbody_sensors=True,
+                                   speed_range=(40.0, 45.0))
+    truth = synth_in_service_independent(tmp_path / "c", seed=5, settings=settings,
+                                         effect=parse_hidden("floor_sensor_offset=0.6"))
+    dx = truth["effect"][0]["details"]["x_error_m"]
+    assert max(abs(x) for x in dx.values()) == pytest.approx(0.6)
+    assert sum(abs(x) == pytest.approx(0.6) for x in dx.values()) == 1  # the other two within it
+
+
 def test_effect_and_settings_errors_name_the_problem():
     with pytest.raises(InputError, match="unknown effect 'bending'"):
         parse_hidden("bending=8")

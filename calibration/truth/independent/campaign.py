@@ -32,8 +32,9 @@ AXLE_BOX_Y, SENSOR_HEIGHT, FLOOR_HEIGHT = 1.0, 0.7, 1.2  # [m]
 #: bench campaign of another revision is made again): 2, the axle boxes' roll term (it had
 #: the same sign on both sides, so their mean carried the cross level); 3, a bending's
 #: frequency is the carbody beam's own first free-free bending (it was a uniform beam's
-#: closed form, 23 % under the beam's).
-TRUTH_REVISION = 3
+#: closed form, 23 % under the beam's); 4, the floor sensors' worst offset is the effect's
+#: magnitude (each was drawn within it, so the magnitude bounded the fault's size, not set it).
+TRUTH_REVISION = 4
 GAUGE = 1.5  # [m] between the rails' contact points: cross level / GAUGE is the roll angle
 
 
@@ -165,7 +166,12 @@ class _Effects:
             return {"wheelset": j + 1, "harmonics": [{"order": n, "amplitude_m": a, "phase": p}
                                                      for n, a, p in harmonics]}
         if e.name == "floor_sensor_offset":
-            self.floor_dx = {w: float(rng.uniform(-mag, mag)) for w in ("front", "centre", "rear")}
+            # the worst-placed sensor (drawn) is MAGNITUDE off, the others anywhere within it: the
+            # magnitude is the fault's size, as every other effect's is
+            where = ("front", "centre", "rear")
+            worst = int(rng.integers(3))
+            self.floor_dx = {w: float(mag * rng.choice([-1.0, 1.0]) if i == worst else rng.uniform(-mag, mag))
+                             for i, w in enumerate(where)}
             return {"x_error_m": self.floor_dx}
         if e.name == "rigid_equipment":
             x = float(rng.uniform(-spec.L_v, spec.L_v))

@@ -11,8 +11,8 @@ what each one does to this truth is its own:
 * ``track_flexibility`` [N/m]: soft ballast: track stiffness per wheelset MAGNITUDE (20e6-80e6);
 * ``wheel_out_of_round`` [m]: a polygonal wheelset (1 or 2): dominant order 1-3 of radius
   amplitude MAGNITUDE plus three higher harmonics of 10-40 % of it (0.05e-3-0.3e-3);
-* ``floor_sensor_offset`` [m]: each carbody floor accelerometer up to MAGNITUDE off its
-  declared x (0.3-1.5).
+* ``floor_sensor_offset`` [m]: the worst-placed carbody floor accelerometer (drawn) MAGNITUDE
+  off its declared x, the other two anywhere within it (0.3-1.5).
 
 Near-mimics outside the catalogue (the diagnosis has no extension for them):
 
@@ -20,6 +20,17 @@ Near-mimics outside the catalogue (the diagnosis has no extension for them):
 * ``load_variation`` [-]: the journeys' payload differs by up to +-MAGNITUDE x the carbody mass;
 
 and any two of the above joined by ``+`` (``cog_offset=0.8+carbody_bending=8``).
+
+The stationary excitation test (:mod:`.stationary`) has its own (:data:`STATIONARY_RANGES`):
+
+* ``underfloor_equipment`` [-]: a body of MAGNITUDE x the carbody's mass hung under the floor
+  on mounts tuned within 4 % of the elastic mode in 8-20 Hz that moves the mount point most
+  (0.01-0.05);
+* ``local_panel_softening`` [-]: the rigidities of one region (roof, front, middle or rear
+  floor) divided by MAGNITUDE (3-10);
+
+and, outside the catalogue, ``sensor_bracket`` [Hz] (one floor accelerometer on a bracket of
+that natural frequency, 10-28) and ``rigid_equipment`` [kg] (a mass bolted to the floor).
 """
 from __future__ import annotations
 
@@ -52,18 +63,27 @@ RANGES = {  # name: (low, high, default, unit, catalogued)
 }
 
 
-def parse_hidden(text: str | None) -> tuple[HiddenEffect, ...]:
-    """``NAME[=MAGNITUDE][+NAME[=MAGNITUDE]]``; InputError naming what is wrong."""
+STATIONARY_RANGES = {
+    "underfloor_equipment": (0.01, 0.05, 0.03, "-", True),
+    "local_panel_softening": (3.0, 10.0, 5.0, "-", True),
+    "sensor_bracket": (10.0, 28.0, 20.0, "Hz", False),
+    "rigid_equipment": (300.0, 1000.0, 700.0, "kg", False),
+}
+
+
+def parse_hidden(text: str | None, ranges: dict = RANGES) -> tuple[HiddenEffect, ...]:
+    """``NAME[=MAGNITUDE][+NAME[=MAGNITUDE]]`` with the names of ``ranges`` (the in-service
+    test's by default); InputError naming what is wrong."""
     if text is None or text == "":
         return ()
     out = []
     for part in text.split("+"):
         name, _, mag = part.partition("=")
         name = name.strip()
-        if name not in RANGES:
-            raise InputError(f"unknown effect {name!r} for the independent truth; available: {', '.join(RANGES)}",
+        if name not in ranges:
+            raise InputError(f"unknown effect {name!r} for the independent truth; available: {', '.join(ranges)}",
                              key="--effect")
-        lo, hi, default, unit, cat = RANGES[name]
+        lo, hi, default, unit, cat = ranges[name]
         if mag:
             try:
                 value = float(mag)
