@@ -269,6 +269,9 @@ def build_parser() -> argparse.ArgumentParser:
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")
     s.add_argument("--runs", type=int, default=2, help="number of test runs (run files)")
+    s.add_argument("--truth", choices=("railcal", "exudyn"), default="railcal",
+                   help="the simulator: railcal's box model (default) or the independent exudyn truth (a shell "
+                        "finite element carbody with window openings, on two bogies)")
 
     s = sub.add_parser("identify", help="modal identification of a campaign")
     s.add_argument("campaign", help="campaign folder")

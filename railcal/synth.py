@@ -60,12 +60,14 @@ def cmd_synth_excitation(args) -> int:
     from calibration.truth.effects import parse_effect
     from calibration.truth.excitation import ExcitationSettings, synth_excitation
 
-    effect = parse_effect(args.effect, "stationary_excitation")
     if args.runs < 1:
         raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
     if not 20.0 * args.runs <= args.duration <= 7200.0:
         raise InputError(f"--duration must be within {20 * args.runs:g}..7200 s (at least 20 s per run), "
                          f"got {args.duration:g}", key="--duration")
+    if getattr(args, "truth", "railcal") == "exudyn":
+        return _synth_excitation_exudyn(args)
+    effect = parse_effect(args.effect, "stationary_excitation")
     check_campaign_output(args.out, overwrite=args.force)
     settings = ExcitationSettings(runs=args.runs, duration=args.duration)
     truth = synth_excitation(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
@@ -74,4 +76,24 @@ def cmd_synth_excitation(args) -> int:
     print(f"wrote {args.out} ({args.runs} runs x {settings.run_duration:g} s, {len(truth['sensors'])} floor "
           f"accelerometers and the exciter force at {settings.fs:g} Hz) and {args.out}.truth.json; "
           f"{truth['modes_kept']['count']} modes kept; elastic modes in 3-25 Hz: {', '.join(elastic)}")
+    return EXIT_OK
+
+
+def _synth_excitation_exudyn(args) -> int:
+    """``synth excitation --truth exudyn``: the independent truth's shell carbody."""
+    from calibration.truth.independent import parse_hidden
+    from calibration.truth.independent.hidden import STATIONARY_RANGES
+    from calibration.truth.independent.stationary import StationarySettings, synth_excitation_independent
+
+    effect = parse_hidden(args.effect, STATIONARY_RANGES)
+    if len(effect) > 1:
+        raise InputError("the stationary exudyn truth hides one effect at a time", key="--effect")
+    check_campaign_output(args.out, overwrite=args.force)
+    settings = StationarySettings(runs=args.runs, duration=args.duration)
+    truth = synth_excitation_independent(args.out, seed=args.seed, settings=settings, effect=effect, fmt=args.format,
+                                         overwrite=args.force, progress=progress_for(args))
+    poles = ", ".join(f"{f:.2f}" for f in truth["frequencies_hz"].values())
+    print(f"wrote {args.out} ({args.runs} runs x {args.duration / args.runs:g} s, {len(truth['sensors'])} floor "
+          f"accelerometers and the exciter force, exudyn truth) and {args.out}.truth.json; poles in 3-25 Hz: "
+          f"{poles} Hz; real-time factor {truth['performance']['real_time_factor']:.1f}")
     return EXIT_OK
