@@ -152,7 +152,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     hyps = []
     on_car = {n: e.on(data.layout) for n, e in EXTENSIONS.items()}  # None: no sensor of the campaign's to act on
     for name in [n for n in ranked if on_car[n] is not None][:settings.fit_leading]:
-        if name == "wheel_out_of_round":  # fitted in _data, on the consistency channel the records keep
+        if name == "wheel_out_of_round" and wheel is not None:  # fitted in _data: the consistency channel is kept
             h = replace(wheel, evidence_score=score[name])
         else:
             h = fit_hypothesis(data, on_car[name], base_fit, ev, score[name])
