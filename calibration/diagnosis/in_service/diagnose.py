@@ -85,7 +85,7 @@ def _data(campaign: Campaign, settings: DiagnosisSettings, start: BaselineStart,
           ) -> tuple[DiagnosisData, Hypothesis | None]:
     """The campaign read into records and band statistics, split into training (odd) and
     held-out (even) runs, with the baseline's start and search bounds; and the wheel
-    polygon's hypothesis (None: the campaign has no axle boxes to see one).
+    polygon's hypothesis (None when the wheel extension does not apply to the campaign's sensors).
 
     The wheels are decided first, on the consistency channel alone: a leading wheelset
     found out of round carries its polygon in its axle boxes, so a trailing wheelset
