@@ -45,7 +45,7 @@ def campaigns(tmp_path_factory):
 def _limits(campaign) -> Detectability:
     """The detectability at the baseline fit, as the diagnosis computes it."""
     s = DiagnosisSettings()
-    data = _data(campaign, s, baseline_start(campaign, s.prior_spread), lambda msg: None)
+    data, _ = _data(campaign, s, baseline_start(campaign, s.prior_spread), lambda msg: None)
     base = fit_response(data.stats, data.layout, data.keys(data.train), data.prior, data.bounds)
     return detectability(data, base)
 
