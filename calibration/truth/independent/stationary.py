@@ -38,7 +38,7 @@ from .campaign import TRUTH_FORMAT
 from .hidden import HiddenEffect
 from .sensors import decimate, quantise
 from .shell_car import ShellCar, mesh, region
-from .stationary_model import Bracket, LinearSystem, Mounted, assemble, carbody_modes
+from .stationary_model import Bracket, CarbodyModes, LinearSystem, Mounted, assemble, carbody_modes
 
 EFFECT_STREAM = 11
 GROUPS = ("roof", "floor", "side", "end")
@@ -164,10 +164,9 @@ def _factors(s: StationarySettings, rng: np.random.Generator) -> dict:
     return {n: float(v) for n, v in zip(names, f)}
 
 
-def _tuned_mount(system: LinearSystem, node_ids, lo_hi, rng) -> tuple[int, float]:
+def _tuned_mount(m: CarbodyModes, node_ids, lo_hi, rng) -> tuple[int, float]:
     """The elastic mode in ``lo_hi`` [Hz] that moves the mount patch most vertically, and
     the mount frequency tuned to it (within EQUIPMENT_DETUNING)."""
-    m = system.modes
     z = np.abs(m.at(node_ids)[2])
     ok = (np.array(m.kind) == "elastic") & (m.frequency_hz >= lo_hi[0]) & (m.frequency_hz <= lo_hi[1])
     k = int(np.flatnonzero(ok)[np.argmax(z[ok])])
@@ -216,9 +215,8 @@ def synth_excitation_independent(out, *, seed: int = 0, settings: StationarySett
     if e is not None and e.name == "underfloor_equipment":
         x = float(round(erng.uniform(-7.0, 7.0) / car.step_x) * car.step_x)
         y = float(0.8 * erng.choice([-1.0, 1.0]))
-        base = assemble(car, shell, modes, damping, node, ex_node)
         patch = shell.node_at((x, y, car.floor_z))
-        k, f_mount = _tuned_mount(base, [patch], EQUIPMENT_BAND, erng)
+        k, f_mount = _tuned_mount(modes, [patch], EQUIPMENT_BAND, erng)
         mounted = Mounted(e.magnitude * float(shell.mass.sum()), x, y, f_mount, EQUIPMENT_DAMPING)
         details = {**asdict(mounted), "tuned_mode_hz": float(modes.frequency_hz[k]),
                    "carbody_mass_kg": float(shell.mass.sum())}
