@@ -164,10 +164,11 @@ class ShellModel:
     def modes(self, count: int, shift: float = -1.0) -> tuple[np.ndarray, np.ndarray]:
         """The ``count`` lowest modes (rigid-body ones included): frequencies [Hz] and
         mass-normalised shapes (6n x count)."""
-        lam, phi = scipy.sparse.linalg.eigsh(self.K, k=count, M=self.M(), sigma=shift, which="LM")
+        M = self.M()
+        lam, phi = scipy.sparse.linalg.eigsh(self.K, k=count, M=M, sigma=shift, which="LM")
         order = np.argsort(lam)
         lam, phi = lam[order], phi[:, order]
-        phi /= np.sqrt(np.einsum("ij,i,ij->j", phi, self.M().diagonal(), phi))
+        phi /= np.sqrt(np.einsum("ij,i,ij->j", phi, M.diagonal(), phi))
         return np.sqrt(np.maximum(lam, 0.0)) / (2 * np.pi), phi
 
 
