@@ -363,15 +363,25 @@ def calibrate_box_campaign(campaign: Campaign, *,
                            refinement: RefineSettings = RefineSettings(),
                            identify: ExcitationIdentifySettings = ExcitationIdentifySettings(),
                            order_change: int = 0, identified: IdentifiedShapes | None = None,
+                           factors: FactorSet | None = None,
                            progress=None) -> tuple[BoxCalibration, ExcitationIdentification | IdentifiedShapes]:
     """Identify a stationary excitation campaign's modes and calibrate the box model to them
     (:func:`calibrate_box`; by default in CAMPAIGN_SWARMS swarms, done at CAMPAIGN_DONE_PCT);
     ``order_change``: added to every panel order of the model (negative: a coarse, fast model,
     e.g. for a campaign synthesised on the same one); ``identified``: the campaign's
-    identification made before (an identification file read back), not made again."""
+    identification made before (an identification file read back), not made again;
+    ``factors``: the factor set searched (default grouped), each factor within the campaign's
+    prior for it, else within the set's own range; priors naming a factor the set does not
+    have are refused."""
     if campaign.meta.kind != "stationary_excitation":
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
+    factors = factor_set(None) if factors is None else factors
+    other = sorted(set(campaign.meta.priors) - set(factors.names))
+    if other:
+        raise InputError(f"[priors] name {', '.join(other)}, which the {factors.name} factor set does not have "
+                         f"(its factors: {', '.join(factors.names)}); give priors for its factors or none",
+                         path=campaign.root / "campaign.toml", key="priors")
     ident = identify_excitation(campaign, identify) if identified is None else identified
     if not ident.modes:
         raise InputError("no mode identified in the analysis band; nothing to calibrate to",
@@ -379,8 +389,8 @@ def calibrate_box_campaign(campaign: Campaign, *,
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
     exciter = meta.exciter()
-    search = box_search(campaign.meta.priors)
+    search = box_search(campaign.meta.priors, factors=factors)
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
-    return calibrate_box(targets_from_identification(ident, band=True), sensors, search, swarm=swarm,
-                         refinement=refinement, order_change=order_change, exciter=exciter, progress=progress), ident
+    return calibrate_box(targets_from_identification(ident, band=True), sensors, search, swarm=swarm, factors=factors,
+        refinement=refinement, order_change=order_change, exciter=exciter, progress=progress), ident

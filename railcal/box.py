@@ -57,6 +57,7 @@ def modes(args) -> dict:
 
 def calibrate(args) -> str:
     from calibration.calibrate_box import RefineSettings, SwarmSettings, calibrate_box_campaign
+    from calibration.models.box import factor_set
     from calibration.optimisers.pso import PSOSettings
 
     if args.method != "pso":
@@ -72,18 +73,23 @@ def calibrate(args) -> str:
         raise InputError(f"--swarms {swarms} with --particles {args.particles}: each swarm needs 2 or more particles",
                          key="--swarms")
     if args.campaign is not None:
-        if args.factors not in (None, "grouped"):
-            raise InputError(f"a campaign is calibrated over the grouped factor set (its priors name them), not "
-                             f"{args.factors!r}", key="--factors")
-        swarm = SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, done_pct=CAMPAIGN_DONE_PCT)
+        try:
+            factors = factor_set(args.factors)
+        except ValueError as e:
+            raise InputError(str(e), key="--factors") from None
         campaign = campaign_of(args)
+        swarm = SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, done_pct=CAMPAIGN_DONE_PCT,
+                              log_factors=_wide(factors, campaign.meta.priors))
         identified = None
         if args.identification is not None:
             from calibration.identification.excitation import IdentifiedShapes
 
             identified = read_identification(args.identification, campaign, IdentifiedShapes.from_json)
-        result, ident = calibrate_box_campaign(campaign, swarm=swarm, refinement=RefineSettings(enabled=args.refine),
-                                               identified=identified, progress=progress_for(args))
+        # a set's polish-only factors join in the polish, which follows the refinement
+        polish = TYPED_POLISH_STEPS if args.refine and factors.polish_only else 0
+        result, ident = calibrate_box_campaign(campaign, swarm=swarm, factors=factors, identified=identified,
+                                               refinement=RefineSettings(enabled=args.refine, polish_steps=polish),
+                                               progress=progress_for(args))
         out = result.to_json(ident)
     else:
         result = _calibrate_typed_targets(args, settings, swarms)
@@ -99,6 +105,15 @@ def calibrate(args) -> str:
             f"{result.max_error_pct:.3g} % over {len(result.fit)} modes, MAC >= "
             f"{min(r['mac'] for r in result.fit):.3f}{unsound_note(result.fit)}; "
             f"{result.identifiability['summary']}; wrote {args.out}")
+
+
+def _wide(factors, priors) -> bool:
+    """Does the search span a ratio of 16 or more in some factor (the campaign's prior, else
+    the set's range)? Then the particles move in the factors' logarithms
+    (:class:`calibration.calibrate_box.SwarmSettings`)."""
+    spans = [(priors[n].high / priors[n].low) if n in priors else hi / lo
+             for n, (lo, hi) in zip(factors.names, factors.ranges)]
+    return max(spans) >= 16
 
 
 def unsound_note(fit) -> str:

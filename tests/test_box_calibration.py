@@ -3,6 +3,8 @@ the data, the swarm and the refinement bring the model to them, bad requests are
 
 A coarse box model (every panel order - 4) keeps the file fast."""
 import json
+import re
+import shutil
 from types import SimpleNamespace
 
 import numpy as np
@@ -486,8 +488,36 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     assert "bespoke" in capsys.readouterr().err
     assert main(["calibrate", str(root), "--model", "box", "--method", "pso", "--factors", "credible",
                  "--out", str(tmp_path / "c.json")]) == 2
-    assert "grouped" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "roof_membrane" in err and "credible factor set does not have" in err and "campaign.toml" in err
+    assert main(["calibrate", str(root), "--model", "box", "--method", "pso", "--factors", "bespoke",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "bespoke" in capsys.readouterr().err
     assert not (tmp_path / "c.json").exists()
+
+
+@pytest.mark.slow
+def test_a_campaign_without_priors_is_calibrated_over_the_chosen_set_within_its_ranges(shaker, tmp_path):
+    """A campaign's [priors] are optional: each factor of the chosen set without one is
+    searched over the set's own range, the credible set's joint factors joining in the polish."""
+    from calibration.calibrate_box import calibrate_box_campaign
+    from calibration.models.box import factor_set
+
+    root = tmp_path / "bare"
+    shutil.copytree(shaker[0], root)
+    toml = root / "campaign.toml"
+    toml.write_text(re.sub(r"\[priors\.\w+\]\n(\w+ = [^\n]*\n)+\n?", "", toml.read_text()))
+    campaign = open_campaign(root)
+    assert campaign.meta.priors == {}
+    credible = factor_set("credible")
+    cal, _ = calibrate_box_campaign(campaign, factors=credible, order_change=COARSE_BOX_ORDERS, identified=shaker[3],
+                                    swarm=SwarmSettings(pso=PSOSettings(particles=8, iterations=2), swarms=1,
+                                                        log_factors=True),
+                                    refinement=RefineSettings(enabled=True, rounds=1, polish_steps=1))
+    assert cal.factor_set == "credible" and set(cal.parameters) == set(credible.names)
+    for name, (lo, hi) in zip(credible.names, credible.ranges):
+        assert lo <= cal.parameters[name] <= hi
+    assert len(cal.fit) >= 1
 
 
 def test_the_summary_names_a_pairing_a_hair_under_the_mac_floor():

@@ -277,6 +277,7 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     assert truth["effect"]["name"] in UNCATALOGUED
     summary = result.summary
     assert result.cause == "unexplained", summary
+    assert summary[-1] == "baseline: every box factor within the campaign's priors"
     assert result.training_runs == ("run_001",) and result.heldout_runs == ("run_002",)
     assert result.extension is None and result.extension_modes is None
     assert all(h.penalised_gain < FAST.min_gain for h in result.hypotheses)

@@ -93,7 +93,8 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     alarms, notes = misfit_alarms(per_channel, evidence.unpaired, s, without_channel=left_out,
                                   local=evidence.local_resonances)
     cause, best = name_cause(hypotheses, alarms, s)
-    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses))
+    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses)) \
+        + (_ranges_words(campaign.meta.priors, ctx),)
     extension_modes = None if best is None else compare_modes(ctx, fits[best.name])
     stages.update()
     stages.close()
@@ -102,3 +103,15 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     return ExcitationDiagnosis(str(campaign.root), cause, summary, ctx.meas_test, evidence, record, hypotheses, best,
                                extension_modes, tuple(ctx.train.label), tuple(ctx.test.label), s, ctx.n_modes,
                                ctx.model.n_dof, time.perf_counter() - t0)
+
+
+def _ranges_words(priors, ctx) -> str:
+    """Where the baseline's factor ranges came from: the campaign's priors, or (for the
+    factors it gives none) the factor set's defaults, said so rather than assumed silently."""
+    default = [(n, lo, hi) for n, lo, hi in zip(ctx.names, ctx.low, ctx.high) if n not in priors]
+    if not default:
+        return "baseline: every box factor within the campaign's priors"
+    which = "any box factor" if len(default) == len(ctx.names) else ", ".join(n for n, _, _ in default)
+    spans = ", ".join(sorted({f"{lo:g}-{hi:g}" for _, lo, hi in default}))
+    return f"baseline: campaign.toml gives no prior for {which}; searched over the default range {spans} (x nominal)"
+

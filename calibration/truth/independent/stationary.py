@@ -32,7 +32,7 @@ import exudyn as exu
 import exudyn.itemInterface as ei
 import numpy as np
 
-from ...data.metadata import CampaignMeta, Excitation, Prior, Sensor
+from ...data.metadata import CampaignMeta, Excitation, Sensor
 from ...data.outputs import CampaignWriter, write_json_atomic
 from .campaign import TRUTH_FORMAT
 from .hidden import HiddenEffect
@@ -42,10 +42,6 @@ from .stationary_model import Bracket, CarbodyModes, LinearSystem, Mounted, asse
 
 EFFECT_STREAM = 11
 GROUPS = ("roof", "floor", "side", "end")
-#: the box model's stiffness factors, as a campaign names what its user may calibrate (data,
-#: not the model): nominal 1, searched within 0.5-2
-BOX_FACTORS = ("roof_membrane", "roof_bending", "floor_membrane", "floor_bending", "side_membrane", "side_shear",
-               "side_bending", "end_rigidity", "roof_side_k_r", "floor_side_k_r", "roof_side_k_t", "floor_side_k_t")
 SOFTENING_REGIONS = ("roof", "floor_front", "floor_middle", "floor_rear")
 EQUIPMENT_BAND = (8.0, 20.0)  # [Hz] elastic modes a mount may be tuned to
 EQUIPMENT_DETUNING = 0.04
@@ -231,14 +227,13 @@ def synth_excitation_independent(out, *, seed: int = 0, settings: StationarySett
     gains[exciter.name] = float(1 + rng.uniform(-s.force_gain_error, s.force_gain_error))
     offsets = {n: float(rng.uniform(-s.acc_offset, s.acc_offset)) for n in names}
     offsets[exciter.name] = float(rng.uniform(-s.force_offset, s.force_offset))
-    priors = {n: Prior(1.0, 0.5, 2.0) for n in BOX_FACTORS}
     meta = CampaignMeta(
         kind="stationary_excitation", name=f"independent exudyn truth, stationary excitation test (seed {seed})",
         vehicle="Shinkansen-type test vehicle (independent truth: shell finite elements, exudyn)",
         sensors=(exciter,) + accs, sampling_rate=s.fs,
         geometry={"bogie_semi_spacing": car.bogie_x, "semi_wheelbase": car.semi_wheelbase, "length": car.length,
                   "width": car.width, "height": car.roof_z},
-        priors=priors, excitation=Excitation(exciter.name, exciter.position))
+        excitation=Excitation(exciter.name, exciter.position))
     runs = []
     simulated, sim_wall = 0.0, 0.0
     step = round(s.sim_rate / s.fs)
