@@ -13,7 +13,16 @@ truth pole (the truth's own integration shifts a 23 Hz pole by about 0.2 %), non
 pole within 1 %; the box model does not reach the shell car: its best fit more than 3 % off
 and several factors on their bounds, as on development seed 5 (6.3 %, 11 of 12 on bounds).
 
+``--factors credible``: the swarm over the credible set instead (18 factors in ranges stated
+before any fit; 300 particles x 300 iterations in 4 swarms, in the factors' logarithms, each
+refined and polished as ``railcal calibrate --factors credible --refine`` does). Expected
+before its first run on these seeds: within 2.5 % on each (development seed 5: 2.38 %, every
+mode's error near that bound, the signature of a minimax fit the model form limits), short of
+the seed's 0.86 % on its real car: the shell's side walls have windows between x = -7 and 7 m
+only, and a uniform side plate cannot be soft there and stiff beyond.
+
     OPENBLAS_NUM_THREADS=1 python scripts/check_excitation_independent.py [--seeds 3] [--keep DIR]
+        [--factors grouped|credible]
 """
 from __future__ import annotations
 
@@ -24,16 +33,29 @@ import tempfile
 import time
 from pathlib import Path
 
-from calibration.calibrate_box import calibrate_box_campaign
+from calibration.calibrate_box import RefineSettings, SwarmSettings, calibrate_box_campaign
 from calibration.data.campaign import open_campaign
 from calibration.identification.excitation import identify_excitation
+from calibration.models.box import factor_set
+from calibration.optimisers.pso import PSOSettings
+from calibration.swarm_defaults import CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_POLISH_STEPS
 from calibration.truth.independent.stationary import synth_excitation_independent
 
 FIRST_SEED = 6100
 WITHIN_PCT, STRAY_PCT = 0.5, 1.0
 
 
-def check(seed: int, workdir: Path) -> dict:
+def _calibrate(campaign, ident, factors: str):
+    if factors == "grouped":  # the command's defaults
+        return calibrate_box_campaign(campaign, identified=ident)[0]
+    fs = factor_set(factors)
+    swarm = SwarmSettings(pso=PSOSettings(particles=300, iterations=300), swarms=CAMPAIGN_SWARMS,
+                          done_pct=CAMPAIGN_DONE_PCT, log_factors=True)
+    return calibrate_box_campaign(campaign, identified=ident, factors=fs, swarm=swarm,
+                                  refinement=RefineSettings(polish_steps=TYPED_POLISH_STEPS))[0]
+
+
+def check(seed: int, workdir: Path, factors: str) -> dict:
     out = workdir / f"shaker_{seed}"
     t0 = time.perf_counter()
     kept = Path(f"{out}.truth.json")
@@ -52,10 +74,12 @@ def check(seed: int, workdir: Path) -> dict:
                       "error_pct": round(err, 3),
                       "verdict": "within" if abs(err) <= WITHIN_PCT else ("off" if abs(err) <= STRAY_PCT else
                                                                            "STRAY")})
-    cal, _ = calibrate_box_campaign(campaign, identified=ident)
+    cal = _calibrate(campaign, ident, factors)
     t3 = time.perf_counter()
-    bounds = [n for n, v in cal.parameters.items() if min(abs(v - 0.5), abs(v - 2.0)) < 1e-6]
-    return {"seed": seed, "modes": modes, "calibration_max_error_pct": round(cal.max_error_pct, 2),
+    fs = factor_set(factors)
+    ranges = dict(zip(fs.names, fs.ranges))
+    bounds = [n for n, v in cal.parameters.items() if min(abs(v / ranges[n][0] - 1), abs(v / ranges[n][1] - 1)) < 1e-4]
+    return {"seed": seed, "factor_set": factors, "modes": modes, "calibration_max_error_pct": round(cal.max_error_pct, 2),
             "factors_on_bounds": bounds, "factors": {k: round(v, 3) for k, v in cal.parameters.items()},
             "synth_s": round(t1 - t0, 1), "identify_s": round(t2 - t1, 1), "calibrate_s": round(t3 - t2, 1),
             "real_time_factor": round(truth["performance"]["real_time_factor"], 1)}
@@ -65,13 +89,14 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--keep", type=Path, help="keep the campaigns in this folder (and reuse those there)")
+    ap.add_argument("--factors", choices=("grouped", "credible"), default="grouped")
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp) if args.keep is None else args.keep
         workdir.mkdir(parents=True, exist_ok=True)
         for k in range(args.seeds):
-            row = check(FIRST_SEED + k, workdir)
+            row = check(FIRST_SEED + k, workdir, args.factors)
             rows.append(row)
             print(json.dumps(row), flush=True)
     modes = [m for r in rows for m in r["modes"]]
@@ -79,7 +104,7 @@ def main() -> int:
     print(f"identified {len(modes)} modes over {len(rows)} campaigns: {sum(m['verdict'] == 'within' for m in modes)} "
           f"within {WITHIN_PCT} % of a truth pole, {sum(m['verdict'] == 'STRAY' for m in modes)} without one within "
           f"{STRAY_PCT} %; worst {worst:.2f} %")
-    print("box model's best fit (max error over the identified modes): "
+    print(f"box model's best fit over the {args.factors} factors (max error over the identified modes): "
           + ", ".join(f"seed {r['seed']} {r['calibration_max_error_pct']:.2f} % ({len(r['factors_on_bounds'])} of "
                       f"{len(r['factors'])} factors on bounds)" for r in rows))
     return 0
