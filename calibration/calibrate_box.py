@@ -23,7 +23,7 @@ from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, sensor_operator
 from .models.box.rig import point_record
-from .models.box.shinkansen import GROUPED_RANGE
+from .models.box.shinkansen import GROUPED_RANGE, WINDOWED, side_end_zone_of
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -46,6 +46,7 @@ class BoxCalibration:
     identifiability: dict
     search: dict = field(default_factory=dict)
     factor_set: str = "grouped"
+    side_end_zone: float = 0.0  # [m] the windowed set's end strips (rebuilding its model needs it)
     order_change: int = 0  # added to every panel order of the model calibrated (negative: coarse)
     sensors: tuple[Sensor, ...] = ()  # the points the target shapes are given at
     exciter: Sensor | None = None  # where the force acted (the FMU's force input)
@@ -58,6 +59,8 @@ class BoxCalibration:
                "max_error_pct": self.max_error_pct, "pso": self.pso, "refinement": self.refinement,
                "reduced_vs_full_pct_at_pso_optimum": self.reduced_vs_full_pct,
                "identifiability": self.identifiability, "search": self.search}
+        if self.side_end_zone:
+            out["side_end_zone_m"] = self.side_end_zone
         if self.order_change:  # a coarse model: whoever rebuilds it from the file must use the same orders
             out["order_change"] = self.order_change
         if self.sensors:
@@ -271,6 +274,7 @@ def calibrate_box(targets: tuple[ModeTarget, ...], sensors, search: tuple[Search
     return BoxCalibration(dict(zip(names, map(float, p))), rows, float(final["max_error_pct"]), pso, refinement,
                           [float(x) for x in check["reduced_vs_full_pct"]], ident,
                           {q.name: [q.low, q.high] for q in search}, set_name,
+                          0.0 if factors is None else factors.side_end_zone,
                           order_change if factors is not None else 0, tuple(sensors), exciter)
 
 
@@ -356,6 +360,21 @@ def _overlap(a, b) -> bool:
     gap = abs(a.frequency_hz - b.frequency_hz)
     inside = gap < max((a.damping_ratio or 0.0) * a.frequency_hz, (b.damping_ratio or 0.0) * b.frequency_hz)
     return bool(inside and mac_matrix(a.shape[:, None], b.shape[:, None])[0, 0] >= SPAN_MIN_MAC)
+
+
+def campaign_factor_set(name: str | None, campaign: Campaign) -> FactorSet:
+    """The factor set ``name`` (None: grouped) for ``campaign``: the windowed set's end strips
+    beyond the side walls' windowed middle, from its [vehicle] windowed_length (InputError
+    naming the key without it); ValueError for an unknown set."""
+    zone = None
+    if name == WINDOWED:
+        windows = campaign.meta.geometry.get("windowed_length")
+        if windows is None:
+            raise InputError("the windowed factor set needs the length of the side walls' windowed middle: "
+                             "[vehicle] windowed_length = METRES", path=campaign.root / "campaign.toml",
+                             key="vehicle.windowed_length")
+        zone = side_end_zone_of(windows)
+    return factor_set(name, side_end_zone=zone)
 
 
 def calibrate_box_campaign(campaign: Campaign, *,

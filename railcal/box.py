@@ -56,8 +56,8 @@ def modes(args) -> dict:
 
 
 def calibrate(args) -> str:
-    from calibration.calibrate_box import RefineSettings, SwarmSettings, calibrate_box_campaign
-    from calibration.models.box import factor_set
+    from calibration.calibrate_box import (RefineSettings, SwarmSettings, calibrate_box_campaign,
+                                           campaign_factor_set)
     from calibration.optimisers.pso import PSOSettings
 
     if args.method != "pso":
@@ -73,11 +73,11 @@ def calibrate(args) -> str:
         raise InputError(f"--swarms {swarms} with --particles {args.particles}: each swarm needs 2 or more particles",
                          key="--swarms")
     if args.campaign is not None:
+        campaign = campaign_of(args)
         try:
-            factors = factor_set(args.factors)
+            factors = campaign_factor_set(args.factors, campaign)
         except ValueError as e:
             raise InputError(str(e), key="--factors") from None
-        campaign = campaign_of(args)
         swarm = SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, done_pct=CAMPAIGN_DONE_PCT,
                               log_factors=_wide(factors, campaign.meta.priors))
         identified = None

@@ -323,9 +323,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--refine", action="store_true",
                    help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--factors", default=None, metavar="SET",
-                   help="box model: the factor set searched, grouped or credible (default: credible with "
-                        "--targets, grouped with a campaign); a campaign's [priors] must name factors of the "
-                        "set, and a factor without one is searched over the set's own range")
+                   help="box model: the factor set searched, grouped, credible or windowed (credible and the "
+                        "side walls' shear beyond their windows; a campaign's [vehicle] windowed_length) (default: "
+                        "credible with --targets, grouped with a campaign); a campaign's [priors] must name "
+                        "factors of the set, and a factor without one is searched over the set's own range")
     s.add_argument("--seed", type=_seed, default=0, help="seed of the search")
     s.add_argument("--out", required=True, help="calibration JSON to write")
     _finish(s, cmd_calibrate, reads_campaign=True)

@@ -417,9 +417,37 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
     assert calibrated_box_model({"parameters": {}})[0].names == factor_set("grouped").names
     for bad, word in (({"factor_set": "bespoke", "parameters": {}}, "bespoke"),
                       ({"factor_set": "credible", "parameters": {"roof_membrane": 1.0}}, "roof_membrane"),
-                      ({"parameters": {"side_shear": float("nan")}}, "positive")):
+                      ({"parameters": {"side_shear": float("nan")}}, "positive"),
+                      ({"factor_set": "windowed", "parameters": {}}, "windowed_length"),
+                      ({"factor_set": "windowed", "side_end_zone_m": 13.0, "parameters": {}}, "0-12.25 m"),
+                      ({"factor_set": "windowed", "side_end_zone_m": "5", "parameters": {}}, "a length")):
         with pytest.raises(InputError, match=word):
             calibrated_box_model(bad)
+
+
+def test_the_windowed_set_adds_the_side_walls_end_strips_and_its_file_rebuilds_them():
+    """The windowed set: the credible factors and the side walls' in-plane shear over end
+    strips of the vehicle's length; its file records the length, and the model rebuilt from
+    the file scales exactly those strips (their share of the side walls' shear energy)."""
+    from calibration.models.box.shinkansen import (Geometry, calibrated_box_model, factor_set, side_end_zone_of,
+                                                   windowed_factor_set)
+
+    credible = factor_set("credible")
+    zone = side_end_zone_of(14.0)
+    assert zone == pytest.approx((Geometry().length - 14.0) / 2)
+    fs = factor_set("windowed", side_end_zone=zone)
+    assert fs == windowed_factor_set(zone) and fs.side_end_zone == zone and credible.side_end_zone == 0.0
+    assert set(fs.names) == set(credible.names) | {"side_end_shear"} and fs.polish_only == credible.polish_only
+    assert fs.swarm_parameters[-1].name == "side_end_shear"  # swarmed, not left to the polish
+    model, p = calibrated_box_model({"factor_set": "windowed", "side_end_zone_m": zone,
+                                     "parameters": {"side_end_shear": 3.0}})
+    assert p["side_end_shear"] == 3.0 and p["side_shear"] == 1.0
+    side = model.vehicle.panels[[q.name for q in model.vehicle.panels].index("side_left")]
+    strips, whole = side.unit_stiffness(zone)["A66"], side.unit_stiffness()["A66"]
+    K = model.K_units["side_end_shear"].toarray()
+    block = model.dof_slices["side_left"]
+    assert np.allclose(K[block, block], side.rigidity["A66"] * strips)
+    assert np.allclose(model.K_units["side_shear"].toarray()[block, block], side.rigidity["A66"] * (whole - strips))
 
 
 @pytest.mark.slow
@@ -493,6 +521,12 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     assert main(["calibrate", str(root), "--model", "box", "--method", "pso", "--factors", "bespoke",
                  "--out", str(tmp_path / "c.json")]) == 2
     assert "bespoke" in capsys.readouterr().err
+    assert main(["calibrate", str(root), "--model", "box", "--method", "pso", "--factors", "windowed",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "vehicle.windowed_length" in capsys.readouterr().err
+    assert main(["calibrate", "--targets", str(good), "--model", "box", "--method", "pso", "--factors", "windowed",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "windowed_length" in capsys.readouterr().err
     assert not (tmp_path / "c.json").exists()
 
 

@@ -115,6 +115,12 @@ def test_semi_wheelbase_must_be_shorter_than_the_bogie_semi_spacing(tiny_campaig
     identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'vehicle\.semi_wheelbase'", "below")
 
 
+def test_the_windowed_middle_must_be_shorter_than_the_carbody(tiny_campaign, tmp_path, capsys):
+    replace_in_toml(tiny_campaign, "semi_wheelbase = 1.25",
+                    "semi_wheelbase = 1.25\nlength = 20.0\nwindowed_length = 20.0")
+    identify_rejects(tiny_campaign, tmp_path, capsys, r"key 'vehicle\.windowed_length'", "below")
+
+
 @pytest.mark.parametrize("column, value, pattern", [
     (2, "-3.0", "negative"),
     (2, "1e6", "above"),

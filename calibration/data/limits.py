@@ -41,7 +41,7 @@ MAX_POSITION = 1.0e3
 #: loading gauges are under 4 m); height 1-8 m above the rail (double-stack container cars:
 #: 6.1 m).
 GEOMETRY_RANGES = {"bogie_semi_spacing": (1.0, 15.0), "semi_wheelbase": (0.5, 2.5), "length": (2.0, 40.0),
-                   "width": (1.0, 5.0), "height": (1.0, 8.0)}
+                   "width": (1.0, 5.0), "height": (1.0, 8.0), "windowed_length": (1.0, 40.0)}
 
 # -------------------------------------------------------------------------- run files
 #: [m/s] 720 km/h, above the wheel-on-rail speed record (574.8 km/h, 2007).

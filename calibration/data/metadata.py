@@ -225,6 +225,10 @@ def _check_geometry(geometry: Mapping[str, float], path) -> None:
     if L_v is not None and L_b is not None and not L_b < L_v:
         raise CampaignError(f"semi_wheelbase {L_b:g} m must be below bogie_semi_spacing {L_v:g} m", path=path,
                             key="vehicle.semi_wheelbase")
+    windows = geometry.get("windowed_length")
+    if windows is not None and length is not None and not windows < length:
+        raise CampaignError(f"windowed_length {windows:g} m must be below the carbody's length {length:g} m",
+                            path=path, key="vehicle.windowed_length")
     if L_v is not None and length is not None and not L_v <= length / 2:
         raise CampaignError(f"bogie_semi_spacing {L_v:g} m puts the bogies beyond the ends of a {length:g} m "
                             f"carbody", path=path, key="vehicle.bogie_semi_spacing")

@@ -148,6 +148,20 @@ POLISH_JOINT_FACTORS = tuple(
     for k, text, limits in (("k_r", "rotational", (0.25, 20.0)), ("k_t", "translational", (0.1, 10.0))))
 
 
+#: The windowed set's factor more: the side walls' in-plane shear over their end strips,
+#: beyond the windowed middle (solid wall, or door openings). Range stated before any fit on
+#: the check seeds: from a door-weakened strip (0.1) to a solid double skin's shear and its
+#: ribs' share, which the smeared nominal (windows included) understates tenfold (10).
+SIDE_END_SHEAR_RANGE = (0.1, 10.0)
+
+
+def side_end_shear(end_zone: float) -> StiffnessParameter:
+    """The side walls' in-plane shear over ``end_zone`` [m] at each end."""
+    return StiffnessParameter("side_end_shear", "panel", "side", ("A66",),
+                              f"side in-plane shear over {end_zone:g} m at each end (beyond the windows)",
+                              end_zone=end_zone)
+
+
 @dataclass(frozen=True)
 class FactorSet:
     """A named choice of stiffness factors with each one's search range. The swarm and the
@@ -171,6 +185,11 @@ class FactorSet:
     def swarm_parameters(self) -> tuple[StiffnessParameter, ...]:
         return self.parameters[:len(self.parameters) - self.polish_only]
 
+    @property
+    def side_end_zone(self) -> float:
+        """The end strips' length [m] of a zoned factor (the windowed set's), else 0."""
+        return max((q.end_zone for q in self.parameters), default=0.0)
+
 
 FACTOR_SETS = {
     # the truth simulator's parameters: membrane and bending of roof, floor and sides (the
@@ -181,15 +200,40 @@ FACTOR_SETS = {
     "credible": FactorSet.from_pairs("credible", CREDIBLE_FACTORS + POLISH_JOINT_FACTORS, len(POLISH_JOINT_FACTORS)),
 }
 DEFAULT_FACTOR_SET = "grouped"
+#: A set made per vehicle: the credible factors and the side walls' end strips, whose length
+#: the vehicle gives (:func:`factor_set` with ``side_end_zone``). A side wall with windows in
+#: its middle only is soft there and stiff beyond, which one smeared plate cannot be.
+WINDOWED = "windowed"
 
 
-def factor_set(name: str | None) -> FactorSet:
+def windowed_factor_set(side_end_zone: float) -> FactorSet:
+    """The credible set and the side walls' shear over ``side_end_zone`` [m] at each end."""
+    half = Geometry().length / 2
+    if not 0 < side_end_zone < half:
+        raise ValueError(f"the side walls' end strips must be 0-{half:g} m long, got {side_end_zone!r}")
+    return FactorSet.from_pairs(WINDOWED, CREDIBLE_FACTORS + ((side_end_shear(side_end_zone), SIDE_END_SHEAR_RANGE),)
+                                + POLISH_JOINT_FACTORS, len(POLISH_JOINT_FACTORS))
+
+
+def factor_set(name: str | None, side_end_zone: float | None = None) -> FactorSet:
     """The factor set ``name`` (None: the grouped default, as calibration files written
-    before factor sets existed); ValueError naming the known sets otherwise."""
+    before factor sets existed); the windowed set with its ``side_end_zone`` [m]. ValueError
+    naming the known sets otherwise, or for a windowed set without its zone."""
+    if name == WINDOWED:
+        if side_end_zone is None:
+            raise ValueError("the windowed factor set needs the length of the side walls' end strips "
+                             "(a campaign's [vehicle] windowed_length)")
+        return windowed_factor_set(side_end_zone)
     try:
         return FACTOR_SETS[DEFAULT_FACTOR_SET if name is None else name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown box factor set {name!r}; known: {', '.join(FACTOR_SETS)}") from None
+        raise ValueError(f"unknown box factor set {name!r}; known: {', '.join(FACTOR_SETS)}, {WINDOWED}") from None
+
+
+def side_end_zone_of(windowed_length: float, geometry: Geometry = Geometry()) -> float:
+    """The end strips' length [m] beyond a centred windowed middle ``windowed_length`` [m]
+    long, on the box model's carbody."""
+    return (geometry.length - windowed_length) / 2
 
 
 def floor_panel(x: float, geometry: Geometry = Geometry()) -> str:
@@ -285,8 +329,11 @@ def calibrated_box_model(calibration: dict):
     panel orders plus ``order_change`` (files without one: 0), every factor it does not name
     nominal. InputError for an unknown set or factor, a factor that is not a positive
     number, or an ``order_change`` that is not an integer."""
+    zone = calibration.get("side_end_zone_m")
+    if zone is not None and (isinstance(zone, bool) or not isinstance(zone, (int, float))):
+        raise InputError(f"'side_end_zone_m' must be a length [m], got {zone!r}", key="side_end_zone_m")
     try:
-        factors = factor_set(calibration.get("factor_set"))
+        factors = factor_set(calibration.get("factor_set"), side_end_zone=zone)
     except ValueError as e:
         raise InputError(str(e), key="factor_set") from None
     params = calibration.get("parameters", {})

@@ -232,7 +232,8 @@ def synth_excitation_independent(out, *, seed: int = 0, settings: StationarySett
         vehicle="Shinkansen-type test vehicle (independent truth: shell finite elements, exudyn)",
         sensors=(exciter,) + accs, sampling_rate=s.fs,
         geometry={"bogie_semi_spacing": car.bogie_x, "semi_wheelbase": car.semi_wheelbase, "length": car.length,
-                  "width": car.width, "height": car.roof_z},
+                  "width": car.width, "height": car.roof_z,
+                  "windowed_length": car.window_x[1] - car.window_x[0]},
         excitation=Excitation(exciter.name, exciter.position))
     runs = []
     simulated, sim_wall = 0.0, 0.0
