@@ -62,13 +62,16 @@ def _diagnose_in_service(campaign, progress, calibration=None, calibration_path=
 
 
 def _diagnose_excitation(campaign, progress, calibration=None, calibration_path=None):
+    """With a calibration, the baseline is its box model (factor set, end strips, orders),
+    whose factors the diagnosis fits again to the campaign's training part."""
     from calibration.diagnosis.excitation import diagnose_excitation
+    from calibration.models.box.shinkansen import calibrated_box_model, factor_set
 
-    if calibration is not None:
-        raise InputError("the excitation-test diagnosis fits its own baseline box model and does not take a "
-                         "calibration yet; run it without --calibration", path=calibration_path,
-                         key="--calibration")
-    return diagnose_excitation(campaign, progress=progress)
+    if calibration is None:
+        return diagnose_excitation(campaign, progress=progress)
+    model, _ = calibrated_box_model(calibration)
+    factors = factor_set(calibration.get("factor_set"), side_end_zone=calibration.get("side_end_zone_m"))
+    return diagnose_excitation(campaign, progress=progress, model=model, factors=factors)
 
 
 def _car_example() -> dict:

@@ -6,6 +6,7 @@ scripts/bench_diagnose_excitation_seeds.py (two to three minutes a campaign).
 A coarse box model (every panel order - 4, the ``coarse_box_model`` fixture) keeps the
 file fast; the physics checked is the same at full order."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -233,6 +234,30 @@ def _campaign_with_unknown_prior(tmp_path):
                                 **{s.name: rng.normal(size=t.size) for s in SENSOR_GRID[:3]}})
         w.commit()
     return root
+
+
+def test_the_baseline_searches_a_chosen_factor_set_within_its_ranges(tmp_path, model):
+    """A campaign without priors and a chosen set (the windowed one): every factor searched
+    over the set's own range, in the factors' logarithms (ranges spanning 16 or more); the
+    grouped default stays within 0.5-2, linear."""
+    from calibration.diagnosis.excitation.context import build_context
+    from calibration.models.box import assemble, factor_set
+    from calibration.models.box.shinkansen import shinkansen_vehicle
+
+    root = tmp_path / "bare"
+    synth_excitation(root, seed=8, settings=ExcitationSettings(runs=2, duration=120.0, order_change=COARSE_BOX_ORDERS),
+                     model=model)
+    toml = root / "campaign.toml"
+    toml.write_text(re.sub(r"\[priors\.\w+\]\n(\w+ = [^\n]*\n)+\n?", "", toml.read_text()))
+    fs = factor_set("windowed", side_end_zone=5.0)
+    windowed = assemble(shinkansen_vehicle(order_increase=COARSE_BOX_ORDERS, parameters=fs.parameters))
+    ctx = build_context(open_campaign(root), FAST, windowed, lambda msg: None, factors=fs)
+    assert ctx.names == fs.names and [(q.low, q.high) for q in ctx.search] == list(fs.ranges)
+    assert ctx.log_factors and ctx.factors is fs
+    grouped = build_context(open_campaign(root), FAST, model, lambda msg: None)
+    assert {(q.low, q.high) for q in grouped.search} == {(0.5, 2.0)} and not grouped.log_factors
+    with pytest.raises(ValueError, match="not the model's"):
+        build_context(open_campaign(root), FAST, model, lambda msg: None, factors=fs)
 
 
 def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...calibrate_box import RefineSettings, SwarmSettings, box_search, calibrate_box, targets_from_identification
+from ...calibrate_box import RefineSettings, SwarmSettings, calibrate_box, targets_from_identification
 from ...signals.modal import mac_matrix
 from .context import Context
 from .family import Layout, Slots
@@ -51,10 +51,9 @@ def fit_baseline(ctx: Context) -> tuple[Fitted, SwarmRecord]:
     s = ctx.settings
     campaign = ctx.campaign
     sensors = tuple(campaign.meta.sensor(n) for n in ctx.sensors)
-    search = box_search(campaign.meta.priors, ctx.names)
-    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search,
-                        swarm=SwarmSettings(pso=s.pso, seed=s.seed), refinement=RefineSettings(enabled=False),
-                        model=ctx.model)
+    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, ctx.search,
+                        swarm=SwarmSettings(pso=s.pso, seed=s.seed, log_factors=ctx.log_factors),
+                        refinement=RefineSettings(enabled=False), model=ctx.model)
     p0 = np.array([cal.parameters[n] for n in ctx.names])
     ctx.say(f"swarm on {len(ctx.ident.modes)} identified modes: {cal.pso['iterations']} iterations, modal fit "
             f"{cal.pso['best_full_pct']:.2f} %; FRF refinement of the factors and modal damping")
@@ -93,7 +92,7 @@ def retry_bounds(ctx: Context, fitted: Fitted) -> Fitted | None:
     at = [n.split(" ")[0] for n in at_bounds(ctx, fitted)]
     if not at:
         return None
-    means = {q.name: q.mean for q in box_search(ctx.campaign.meta.priors, ctx.names)}
+    means = {q.name: q.mean for q in ctx.search}
     x = fitted.x.copy()
     for n in at:
         x[ctx.names.index(n)] = np.log(np.clip(means[n], ctx.low[ctx.names.index(n)] * 1.001,

@@ -11,9 +11,10 @@ from ...calibrate_box import box_search
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
 from ...identification.excitation import ExcitationIdentification, identify_excitation
-from ...models.box import BoxModel
+from ...models.box import BoxModel, FactorSet, assemble
 from ...models.box.assembly import carbody_mass
-from ...models.box.shinkansen import shinkansen_model
+from ...models.box.shinkansen import shinkansen_model, shinkansen_vehicle
+from ...optimisers.base import SearchParameter
 from .basis import Operators, modes_below
 from .data import MeasuredFRF, Part, measured_frf, split_campaign
 from .settings import ExcitationDiagnosisSettings
@@ -43,6 +44,13 @@ class Context:
     carbody_mass: float  # [kg]
     say: Callable[[str], None]
     n_modes: int  # full-model modes kept in every reduced basis (those below settings.basis_hz)
+    search: tuple[SearchParameter, ...]  # each factor's prior (or its set's range), as the swarms search it
+    factors: FactorSet | None  # the factor set the model was assembled from (None: a model given as such)
+
+    @property
+    def log_factors(self) -> bool:
+        """Do the factors span ratios of 16 or more? Then the swarms move in their logarithms."""
+        return max(q.high / q.low for q in self.search) >= 16
 
     @property
     def model(self) -> BoxModel:
@@ -58,18 +66,20 @@ class Context:
 
 
 def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, model: BoxModel | None, say,
-                  without: tuple[str, ...] = ()) -> Context:
+                  without: tuple[str, ...] = (), factors: FactorSet | None = None) -> Context:
     """Check the campaign (kind, excitation, priors), split it, identify both parts and
-    build the operators; ``without``: channels left out. Bad input raises
-    :class:`InputError` naming the campaign.toml key; a training part without modes,
-    :class:`CampaignError`."""
+    build the operators; ``without``: channels left out; ``factors``: the factor set of the
+    model (assembled from it when ``model`` is None), whose ranges bound the factors the
+    campaign gives no prior for. Bad input raises :class:`InputError` naming the
+    campaign.toml key; a training part without modes, :class:`CampaignError`."""
     meta = campaign.meta
     toml = campaign.root / "campaign.toml"
     if meta.kind != KIND:
         raise InputError(f"diagnose_excitation reads {KIND} campaigns, not {meta.kind}", path=toml, key="kind")
     if meta.excitation is None:
         raise InputError(f"a {KIND} campaign needs [excitation] sensor = ...", path=toml, key="excitation")
-    model = shinkansen_model() if model is None else model
+    if model is None:
+        model = shinkansen_model() if factors is None else assemble(shinkansen_vehicle(parameters=factors.parameters))
     unknown = sorted(set(meta.priors) - set(model.names))
     if unknown:
         raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(model.names)}",
@@ -90,7 +100,9 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
         ops = Operators.build(model, sensors, exciter)
     except ValueError as exc:
         raise InputError(f"{exc}", path=toml, key="sensors") from None
-    search = box_search(meta.priors, model.names)
+    search = box_search(meta.priors, factors=factors) if factors is not None else box_search(meta.priors, model.names)
+    if tuple(q.name for q in search) != model.names:
+        raise ValueError(f"the factor set {factors.name} is not the model's ({', '.join(model.names)})")
     low = np.array([q.low for q in search])
     high = np.array([q.high for q in search])
     zetas = [m.damping_ratio for m in ident.modes if m.damping_ratio]
@@ -100,4 +112,4 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
     say(f"training {', '.join(train.label)}: {len(ident.modes)} modes; held out {', '.join(test.label)}; "
         f"reduced bases keep the model's {n_modes} modes below {settings.basis_hz:g} Hz")
     return Context(campaign, settings, ops, train, test, ident, ident_test, meas, meas_test, low, high, p_nom, default,
-                   carbody_mass(model), say, n_modes)
+                   carbody_mass(model), say, n_modes, search, factors)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
-from ...models.box import BoxModel
+from ...models.box import BoxModel, FactorSet
 from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import baseline_start, fit_baseline, modal_damping
@@ -51,21 +51,24 @@ def _refit_baseline(ctx: Context, base: Fitted, held: HeldOut,
 
 @one_blas_thread  # the answer must not depend on the machine's thread count (..threads)
 def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | None = None,
-                        settings: ExcitationDiagnosisSettings = ExcitationDiagnosisSettings()) -> ExcitationDiagnosis:
+                        settings: ExcitationDiagnosisSettings = ExcitationDiagnosisSettings(),
+                        factors: FactorSet | None = None) -> ExcitationDiagnosis:
     """Diagnose an excitation-test campaign (kind ``stationary_excitation``; the package
     docstring tells how).
 
     ``progress``: a callable taking a message (and driving a progress bar), or None.
     ``model``: the assembled box model without effect (default: the Shinkansen-type vehicle
     at full order); pass the model the campaign should be compared with (e.g. a coarse one
-    in tests).
+    in tests). ``factors``: the factor set the baseline is fitted over (the model assembled
+    from it when ``model`` is None; default: the grouped set), within the campaign's priors,
+    else the set's ranges.
 
     Bad input raises :class:`InputError` naming the campaign.toml key."""
     t0 = time.perf_counter()
     say = progress or (lambda msg: None)
     s = settings
     stages = counter(progress, 3 + len(EXTENSIONS), "shaker diagnosis", unit="stage")
-    ctx = build_context(campaign, s, model, say)
+    ctx = build_context(campaign, s, model, say, factors=factors)
     stages.update()
     base, swarm = fit_baseline(ctx)
     stages.update()
@@ -86,7 +89,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     left_out = None
     if one is not None and len(ctx.sensors) > 2:
         try:
-            left_out = without_channel(campaign, s, ctx.model, one[0], say)
+            left_out = without_channel(campaign, s, ctx.model, one[0], say, factors)
         except (CampaignError, InputError) as exc:  # e.g. no mode identified without it: the check is skipped
             say(f"re-calibration without {one[0]} not possible: {exc}")
     evidence = gather_evidence(ctx, base, held, compare_modes(ctx, base), swarm, left_out)
@@ -109,9 +112,10 @@ def _ranges_words(priors, ctx) -> str:
     """Where the baseline's factor ranges came from: the campaign's priors, or (for the
     factors it gives none) the factor set's defaults, said so rather than assumed silently."""
     default = [(n, lo, hi) for n, lo, hi in zip(ctx.names, ctx.low, ctx.high) if n not in priors]
+    head = "baseline" if ctx.factors is None else f"baseline ({ctx.factors.name} factors)"
     if not default:
-        return "baseline: every box factor within the campaign's priors"
+        return f"{head}: every box factor within the campaign's priors"
     which = "any box factor" if len(default) == len(ctx.names) else ", ".join(n for n, _, _ in default)
     spans = ", ".join(sorted({f"{lo:g}-{hi:g}" for _, lo, hi in default}))
-    return f"baseline: campaign.toml gives no prior for {which}; searched over the default range {spans} (x nominal)"
+    return f"{head}: campaign.toml gives no prior for {which}; searched over the default ranges {spans} (x nominal)"
 

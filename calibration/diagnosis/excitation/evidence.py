@@ -13,7 +13,7 @@ import numpy as np
 
 from ...data.campaign import Campaign
 from ...identification.excitation import LocalResonance
-from ...models.box import BoxModel
+from ...models.box import BoxModel, FactorSet
 from ...signals.modal import frac, log_error_db, mac_matrix
 from .baseline import SwarmRecord, fit_baseline
 from .context import Context, build_context
@@ -168,12 +168,12 @@ def confined_channel(heldout_error: Mapping[str, float],
 
 
 def without_channel(campaign: Campaign, settings: ExcitationDiagnosisSettings, model: BoxModel, channel: str,
-                    say) -> ChannelLeftOut:
+                    say, factors: FactorSet | None = None) -> ChannelLeftOut:
     """The baseline re-calibrated (identification, swarm, FRF refinement) with ``channel``
     left out, and its held-out error on the other channels: where they are then explained,
     the misfit was that measurement point's, not the carbody's."""
     say(f"the misfit is confined to {channel}: baseline re-calibrated without it")
-    ctx = build_context(campaign, settings, model, say, without=(channel,))
+    ctx = build_context(campaign, settings, model, say, without=(channel,), factors=factors)
     base, _ = fit_baseline(ctx)
     e = heldout(ctx, base).error
     say(f"without {channel}: held-out error {np.mean(e):.2f} x noise on {e.size} channels")

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...calibrate_box import RefineSettings, SwarmSettings, box_search, calibrate_box, targets_from_identification
+from ...calibrate_box import RefineSettings, SwarmSettings, calibrate_box, targets_from_identification
 from ...models.box import BoxModel
 from .basis import Operators, ReducedFRFModel, Stiffness
 from .context import Context
@@ -84,14 +84,14 @@ def panel_swarm(ctx: Context, panel: str) -> PanelSwarm:
     s = ctx.settings
     model, copies = panel_split_model(ctx.ops, panel)
     own = ctx.ops.own_group_factors(panel)
-    prior = box_search(ctx.campaign.meta.priors, ctx.names)
+    prior = ctx.search
     soft = DIVISOR_RANGE[1]
     search = tuple(replace(q, low=q.low / soft) if q.name in own else q for q in prior) + tuple(
         replace(q, name=f"{q.name}@{panel}", low=q.low / soft) for q in prior if q.name in copies)
     sensors = tuple(ctx.campaign.meta.sensor(n) for n in ctx.sensors)
     cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search,
-                        swarm=SwarmSettings(pso=s.pso, seed=s.seed), refinement=RefineSettings(enabled=False),
-                        model=model)
+                        swarm=SwarmSettings(pso=s.pso, seed=s.seed, log_factors=ctx.log_factors),
+                        refinement=RefineSettings(enabled=False), model=model)
     found = cal.parameters
     p = np.array([found[n] for n in ctx.names])
     group = np.array([n not in own for n in ctx.names])  # back in the priors (the own ones: by the divisor, later)
