@@ -63,15 +63,17 @@ def _diagnose_in_service(campaign, progress, calibration=None, calibration_path=
 
 def _diagnose_excitation(campaign, progress, calibration=None, calibration_path=None):
     """With a calibration, the baseline is its box model (factor set, end strips, orders),
-    whose factors the diagnosis fits again to the campaign's training part."""
+    started at its factors and fitted again to the campaign's training part."""
     from calibration.diagnosis.excitation import diagnose_excitation
     from calibration.models.box.shinkansen import calibrated_box_model, factor_set
 
     if calibration is None:
         return diagnose_excitation(campaign, progress=progress)
-    model, _ = calibrated_box_model(calibration)
+    model, start = calibrated_box_model(calibration)
     factors = factor_set(calibration.get("factor_set"), side_end_zone=calibration.get("side_end_zone_m"))
-    return diagnose_excitation(campaign, progress=progress, model=model, factors=factors)
+    fit = calibration.get("max_error_pct")
+    return diagnose_excitation(campaign, progress=progress, model=model, factors=factors, start=start,
+                               start_fit_pct=float(fit) if isinstance(fit, (int, float)) else None)
 
 
 def _car_example() -> dict:

@@ -253,7 +253,12 @@ def test_the_baseline_searches_a_chosen_factor_set_within_its_ranges(tmp_path, m
     windowed = assemble(shinkansen_vehicle(order_increase=COARSE_BOX_ORDERS, parameters=fs.parameters))
     ctx = build_context(open_campaign(root), FAST, windowed, lambda msg: None, factors=fs)
     assert ctx.names == fs.names and [(q.low, q.high) for q in ctx.search] == list(fs.ranges)
-    assert ctx.log_factors and ctx.factors is fs
+    assert ctx.log_factors and ctx.factors is fs and ctx.start is None
+    started = build_context(open_campaign(root), FAST, windowed, lambda msg: None, factors=fs,
+                            start={"side_end_shear": 50.0, "roof_shear": 0.5}, start_fit_pct=0.2)
+    at = dict(zip(started.names, started.start))
+    assert at["roof_shear"] == 0.5 and at["floor_bending"] == 1.0 and started.start_fit_pct == 0.2
+    assert 9.99 < at["side_end_shear"] < 10.0  # a calibration outside the set's range starts inside it
     grouped = build_context(open_campaign(root), FAST, model, lambda msg: None)
     assert {(q.low, q.high) for q in grouped.search} == {(0.5, 2.0)} and not grouped.log_factors
     with pytest.raises(ValueError, match="not the model's"):

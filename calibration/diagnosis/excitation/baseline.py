@@ -26,16 +26,18 @@ START_FREQUENCY = 0.05
 
 @dataclass(frozen=True)
 class SwarmRecord:
-    """The baseline's swarm on the identified modes (:func:`calibration.calibrate_box.calibrate_box`).
+    """The baseline's swarm on the identified modes (:func:`calibration.calibrate_box.calibrate_box`),
+    or (no particles, no iterations) the calibration the baseline started from instead.
 
     modal_fit_pct : its objective, the largest frequency error of the identified modes [%]
+        (a calibration's own, None where its file states none)
     undetermined_by_frequencies : the factor directions the frequencies leave open, in words
     """
 
     particles: int
     iterations: int
     stop_pct: float
-    modal_fit_pct: float
+    modal_fit_pct: float | None
     parameters: dict
     undetermined_by_frequencies: tuple[str, ...]
 
@@ -46,17 +48,26 @@ class SwarmRecord:
 
 
 def fit_baseline(ctx: Context) -> tuple[Fitted, SwarmRecord]:
-    """Swarm on the identified modes (:func:`calibrate_box`), then FRF refinement; a factor
-    the refinement drives to a bound is retried from its prior mean (:func:`retry_bounds`)."""
+    """Swarm on the identified modes (:func:`calibrate_box`; a calibration's factors
+    instead where the context has them), then FRF refinement; a factor the refinement drives
+    to a bound is retried from its prior mean (:func:`retry_bounds`)."""
     s = ctx.settings
     campaign = ctx.campaign
     sensors = tuple(campaign.meta.sensor(n) for n in ctx.sensors)
-    cal = calibrate_box(targets_from_identification(ctx.ident), sensors, ctx.search,
-                        swarm=SwarmSettings(pso=s.pso, seed=s.seed, log_factors=ctx.log_factors),
-                        refinement=RefineSettings(enabled=False), model=ctx.model)
-    p0 = np.array([cal.parameters[n] for n in ctx.names])
-    ctx.say(f"swarm on {len(ctx.ident.modes)} identified modes: {cal.pso['iterations']} iterations, modal fit "
-            f"{cal.pso['best_full_pct']:.2f} %; FRF refinement of the factors and modal damping")
+    if ctx.start is not None:  # a calibration's factors: the user's model, not a swarm's
+        p0 = ctx.start
+        swarm = SwarmRecord(0, 0, s.pso.target, ctx.start_fit_pct, dict(zip(ctx.names, map(float, p0))), ())
+        ctx.say("baseline from the calibration's factors; FRF refinement of the factors and modal damping")
+    else:
+        cal = calibrate_box(targets_from_identification(ctx.ident), sensors, ctx.search,
+                            swarm=SwarmSettings(pso=s.pso, seed=s.seed, log_factors=ctx.log_factors),
+                            refinement=RefineSettings(enabled=False), model=ctx.model)
+        p0 = np.array([cal.parameters[n] for n in ctx.names])
+        swarm = SwarmRecord(s.pso.particles, cal.pso["iterations"], s.pso.target, cal.pso["best_full_pct"],
+                            cal.parameters,
+                            tuple(d["in_words"] for d in cal.identifiability["undetermined_directions"]))
+        ctx.say(f"swarm on {len(ctx.ident.modes)} identified modes: {cal.pso['iterations']} iterations, modal fit "
+                f"{cal.pso['best_full_pct']:.2f} %; FRF refinement of the factors and modal damping")
     layout0 = Layout(len(p0), 0)
     red = basis_at(ctx, layout0, np.log(p0), None)
     modes = red.modes(p0)
@@ -78,9 +89,6 @@ def fit_baseline(ctx: Context) -> tuple[Fitted, SwarmRecord]:
     retried = retry_bounds(ctx, fitted)
     if retried is not None:
         fitted = retried
-    swarm = SwarmRecord(s.pso.particles, cal.pso["iterations"], s.pso.target, cal.pso["best_full_pct"],
-                        cal.parameters,
-                        tuple(d["in_words"] for d in cal.identifiability["undetermined_directions"]))
     return fitted, swarm
 
 

@@ -2,7 +2,7 @@
 FRFs of both parts, the full model's operators and the factors' bounds."""
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +46,8 @@ class Context:
     n_modes: int  # full-model modes kept in every reduced basis (those below settings.basis_hz)
     search: tuple[SearchParameter, ...]  # each factor's prior (or its set's range), as the swarms search it
     factors: FactorSet | None  # the factor set the model was assembled from (None: a model given as such)
+    start: np.ndarray | None = None  # a calibration's factors, where the baseline starts instead of a swarm
+    start_fit_pct: float | None = None  # that calibration's largest modal frequency error [%]
 
     @property
     def log_factors(self) -> bool:
@@ -66,12 +68,15 @@ class Context:
 
 
 def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, model: BoxModel | None, say,
-                  without: tuple[str, ...] = (), factors: FactorSet | None = None) -> Context:
+                  without: tuple[str, ...] = (), factors: FactorSet | None = None,
+                  start: Mapping[str, float] | None = None, start_fit_pct: float | None = None) -> Context:
     """Check the campaign (kind, excitation, priors), split it, identify both parts and
     build the operators; ``without``: channels left out; ``factors``: the factor set of the
     model (assembled from it when ``model`` is None), whose ranges bound the factors the
     campaign gives no prior for. Bad input raises :class:`InputError` naming the
-    campaign.toml key; a training part without modes, :class:`CampaignError`."""
+    campaign.toml key; a training part without modes, :class:`CampaignError`. ``start``: a
+    calibration's factors by name (those it lacks nominal), clipped into the bounds, and
+    ``start_fit_pct`` its modal fit."""
     meta = campaign.meta
     toml = campaign.root / "campaign.toml"
     if meta.kind != KIND:
@@ -112,4 +117,7 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
     say(f"training {', '.join(train.label)}: {len(ident.modes)} modes; held out {', '.join(test.label)}; "
         f"reduced bases keep the model's {n_modes} modes below {settings.basis_hz:g} Hz")
     return Context(campaign, settings, ops, train, test, ident, ident_test, meas, meas_test, low, high, p_nom, default,
-                   carbody_mass(model), say, n_modes, search, factors)
+                   carbody_mass(model), say, n_modes, search, factors,
+                   None if start is None else np.clip([float(start.get(n, 1.0)) for n in model.names],
+                                                      low * (1 + 1e-6), high * (1 - 1e-6)),
+                   start_fit_pct)

@@ -4,6 +4,7 @@ evidence, the decision, the result."""
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -52,7 +53,8 @@ def _refit_baseline(ctx: Context, base: Fitted, held: HeldOut,
 @one_blas_thread  # the answer must not depend on the machine's thread count (..threads)
 def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | None = None,
                         settings: ExcitationDiagnosisSettings = ExcitationDiagnosisSettings(),
-                        factors: FactorSet | None = None) -> ExcitationDiagnosis:
+                        factors: FactorSet | None = None, start: Mapping[str, float] | None = None,
+                        start_fit_pct: float | None = None) -> ExcitationDiagnosis:
     """Diagnose an excitation-test campaign (kind ``stationary_excitation``; the package
     docstring tells how).
 
@@ -61,14 +63,16 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     at full order); pass the model the campaign should be compared with (e.g. a coarse one
     in tests). ``factors``: the factor set the baseline is fitted over (the model assembled
     from it when ``model`` is None; default: the grouped set), within the campaign's priors,
-    else the set's ranges.
+    else the set's ranges. ``start``: a calibration's factors by name, where the baseline's
+    FRF refinement starts instead of after a swarm, and ``start_fit_pct`` that calibration's
+    modal fit [%] (recorded with it).
 
     Bad input raises :class:`InputError` naming the campaign.toml key."""
     t0 = time.perf_counter()
     say = progress or (lambda msg: None)
     s = settings
     stages = counter(progress, 3 + len(EXTENSIONS), "shaker diagnosis", unit="stage")
-    ctx = build_context(campaign, s, model, say, factors=factors)
+    ctx = build_context(campaign, s, model, say, factors=factors, start=start, start_fit_pct=start_fit_pct)
     stages.update()
     base, swarm = fit_baseline(ctx)
     stages.update()
@@ -89,7 +93,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     left_out = None
     if one is not None and len(ctx.sensors) > 2:
         try:
-            left_out = without_channel(campaign, s, ctx.model, one[0], say, factors)
+            left_out = without_channel(campaign, s, ctx.model, one[0], say, factors, start, start_fit_pct)
         except (CampaignError, InputError) as exc:  # e.g. no mode identified without it: the check is skipped
             say(f"re-calibration without {one[0]} not possible: {exc}")
     evidence = gather_evidence(ctx, base, held, compare_modes(ctx, base), swarm, left_out)

@@ -168,12 +168,13 @@ def confined_channel(heldout_error: Mapping[str, float],
 
 
 def without_channel(campaign: Campaign, settings: ExcitationDiagnosisSettings, model: BoxModel, channel: str,
-                    say, factors: FactorSet | None = None) -> ChannelLeftOut:
+                    say, factors: FactorSet | None = None, start=None, start_fit_pct=None) -> ChannelLeftOut:
     """The baseline re-calibrated (identification, swarm, FRF refinement) with ``channel``
     left out, and its held-out error on the other channels: where they are then explained,
     the misfit was that measurement point's, not the carbody's."""
     say(f"the misfit is confined to {channel}: baseline re-calibrated without it")
-    ctx = build_context(campaign, settings, model, say, without=(channel,), factors=factors)
+    ctx = build_context(campaign, settings, model, say, without=(channel,), factors=factors, start=start,
+                        start_fit_pct=start_fit_pct)
     base, _ = fit_baseline(ctx)
     e = heldout(ctx, base).error
     say(f"without {channel}: held-out error {np.mean(e):.2f} x noise on {e.size} channels")
@@ -200,7 +201,7 @@ class Evidence:
     modes: ModeComparison
     unpaired: tuple[UnpairedMode, ...]
     parameters_at_bounds: tuple[str, ...]
-    modal_fit_of_swarm_pct: float
+    modal_fit_of_swarm_pct: float | None  # None: a calibration's start that states none
     identified_in_heldout: tuple[float, ...]
     without_channel: ChannelLeftOut | None = None
     local_resonances: tuple[LocalResonance, ...] = ()
