@@ -412,4 +412,4 @@ def calibrate_box_campaign(campaign: Campaign, *,
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, swarm=swarm, factors=factors,
-        refinement=refinement, order_change=order_change, exciter=exciter, progress=progress), ident
+                         refinement=refinement, order_change=order_change, exciter=exciter, progress=progress), ident

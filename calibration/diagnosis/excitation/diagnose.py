@@ -122,4 +122,3 @@ def _ranges_words(priors, ctx) -> str:
     which = "any box factor" if len(default) == len(ctx.names) else ", ".join(n for n, _, _ in default)
     spans = ", ".join(sorted({f"{lo:g}-{hi:g}" for _, lo, hi in default}))
     return f"{head}: campaign.toml gives no prior for {which}; searched over the default ranges {spans} (x nominal)"
-
