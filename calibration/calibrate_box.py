@@ -374,6 +374,10 @@ def campaign_factor_set(name: str | None, campaign: Campaign) -> FactorSet:
                              "[vehicle] windowed_length = METRES", path=campaign.root / "campaign.toml",
                              key="vehicle.windowed_length")
         zone = side_end_zone_of(windows)
+        if not zone > 0:
+            raise InputError(f"windowed_length {windows:g} m leaves no side wall beyond the windows on the box model's "
+                             f"{windows + 2 * zone:g} m carbody", path=campaign.root / "campaign.toml",
+                             key="vehicle.windowed_length")
     return factor_set(name, side_end_zone=zone)
 
 

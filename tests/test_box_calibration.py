@@ -524,6 +524,14 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     assert main(["calibrate", str(root), "--model", "box", "--method", "pso", "--factors", "windowed",
                  "--out", str(tmp_path / "c.json")]) == 2
     assert "vehicle.windowed_length" in capsys.readouterr().err
+    longer = tmp_path / "longer"
+    shutil.copytree(root, longer)
+    toml = longer / "campaign.toml"
+    toml.write_text(re.sub(r"\[priors\.\w+\]\n(\w+ = [^\n]*\n)+\n?", "", toml.read_text())
+                    .replace("length = 24.5\n", "length = 26.4\nwindowed_length = 25.0\n"))  # a longer car
+    assert main(["calibrate", str(longer), "--model", "box", "--method", "pso", "--factors", "windowed",
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "no side wall beyond the windows" in capsys.readouterr().err
     assert main(["calibrate", "--targets", str(good), "--model", "box", "--method", "pso", "--factors", "windowed",
                  "--out", str(tmp_path / "c.json")]) == 2
     assert "windowed_length" in capsys.readouterr().err
