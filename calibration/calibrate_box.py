@@ -81,8 +81,9 @@ def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tup
     priors = dict(priors or {})
     unknown = sorted(set(priors) - set(names))
     if unknown:
-        raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(names)}",
-                         key="priors")
+        which = "the box model" if names != factors.names else f"the {factors.name} factor set"
+        raise InputError(f"priors name {', '.join(unknown)}, which {which} does not have (its factors: "
+                         f"{', '.join(names)}); give priors for its factors or none", key="priors")
     out = []
     for n in names:
         pr = priors.get(n)
@@ -400,11 +401,10 @@ def calibrate_box_campaign(campaign: Campaign, *,
         raise InputError(f"the box model is calibrated from stationary excitation tests, not {campaign.meta.kind}",
                          path=campaign.root / "campaign.toml", key="kind")
     factors = factor_set(None) if factors is None else factors
-    other = sorted(set(campaign.meta.priors) - set(factors.names))
-    if other:
-        raise InputError(f"[priors] name {', '.join(other)}, which the {factors.name} factor set does not have "
-                         f"(its factors: {', '.join(factors.names)}); give priors for its factors or none",
-                         path=campaign.root / "campaign.toml", key="priors")
+    try:
+        search = box_search(campaign.meta.priors, factors=factors)
+    except InputError as e:
+        raise e.located(campaign.root / "campaign.toml") from None
     ident = identify_excitation(campaign, identify) if identified is None else identified
     if not ident.modes:
         raise InputError("no mode identified in the analysis band; nothing to calibrate to",
@@ -412,7 +412,6 @@ def calibrate_box_campaign(campaign: Campaign, *,
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
     exciter = meta.exciter()
-    search = box_search(campaign.meta.priors, factors=factors)
     if progress:
         progress(f"identified {len(ident.modes)} modes; particle swarm on the box model")
     return calibrate_box(targets_from_identification(ident, band=True), sensors, search, swarm=swarm, factors=factors,

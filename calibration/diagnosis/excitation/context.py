@@ -85,10 +85,12 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
         raise InputError(f"a {KIND} campaign needs [excitation] sensor = ...", path=toml, key="excitation")
     if model is None:
         model = shinkansen_model() if factors is None else assemble(shinkansen_vehicle(parameters=factors.parameters))
-    unknown = sorted(set(meta.priors) - set(model.names))
-    if unknown:
-        raise InputError(f"priors for unknown box parameter(s) {', '.join(unknown)}; known: {', '.join(model.names)}",
-                         path=toml, key="priors")
+    try:  # a set's own factors and ranges, else the model's factors in the default ranges
+        search = box_search(meta.priors, None if factors is not None else model.names, factors=factors)
+    except InputError as e:
+        raise e.located(toml) from None
+    if tuple(q.name for q in search) != model.names:
+        raise ValueError(f"the factor set {factors.name} is not the model's ({', '.join(model.names)})")
     train, test = split_campaign(campaign, without)
     ident = identify_excitation(train, settings.identify)
     ident_test = identify_excitation(test, settings.identify)
@@ -105,9 +107,6 @@ def build_context(campaign: Campaign, settings: ExcitationDiagnosisSettings, mod
         ops = Operators.build(model, sensors, exciter)
     except ValueError as exc:
         raise InputError(f"{exc}", path=toml, key="sensors") from None
-    search = box_search(meta.priors, factors=factors) if factors is not None else box_search(meta.priors, model.names)
-    if tuple(q.name for q in search) != model.names:
-        raise ValueError(f"the factor set {factors.name} is not the model's ({', '.join(model.names)})")
     low = np.array([q.low for q in search])
     high = np.array([q.high for q in search])
     zetas = [m.damping_ratio for m in ident.modes if m.damping_ratio]
