@@ -265,6 +265,28 @@ def test_the_baseline_searches_a_chosen_factor_set_within_its_ranges(tmp_path, m
         build_context(open_campaign(root), FAST, model, lambda msg: None, factors=fs)
 
 
+def test_a_panels_split_is_the_assemblys_with_end_strips_too():
+    """The diagnosis splits a panel's stiffness by factor as the assembly does, a side wall's
+    end strips to their own factor (the windowed set): each factor's part of the panel is
+    the assembled factor matrix on that panel, and softening the wall keeps it positive."""
+    from calibration.models.box import assemble, factor_set
+    from calibration.models.box.shinkansen import shinkansen_vehicle
+
+    fs = factor_set("windowed", side_end_zone=5.0)
+    windowed = assemble(shinkansen_vehicle(order_increase=COARSE_BOX_ORDERS, parameters=fs.parameters))
+    ops = Operators.build(windowed, SENSOR_GRID, EXCITER)
+    K0p, Kp = ops.panel_stiffness("side_left")
+    block = windowed.dof_slices["side_left"]
+    for name in ("side_shear", "side_end_shear", "side_normal"):
+        assert np.allclose(Kp[name].toarray()[block, block], windowed.K_units[name].toarray()[block, block])
+    split, copies = panel_split_model(ops, "side_left")
+    assert set(copies) >= {"side_shear", "side_end_shear"}
+    p = {n: 1.0 for n in split.names} | {"side_shear": 2.0, "side_end_shear": 0.2}
+    p.update({f"{n}@side_left": p[n] / 30 for n in copies})
+    K = split.stiffness([p[n] for n in split.names]).toarray()[block, block]
+    assert np.linalg.eigvalsh(K).min() > -1e-6 * np.abs(K).max()
+
+
 def test_refuses_priors_for_parameters_the_box_model_lacks(tmp_path, model):
     with pytest.raises(InputError, match=r"key 'priors'.*wobble_factor"):
         diagnose_excitation(open_campaign(_campaign_with_unknown_prior(tmp_path)), model=model)

@@ -17,6 +17,7 @@ import scipy.sparse.linalg
 
 from ...data.campaign import Sensor
 from ...models.box import BoxModel
+from ...models.box.assembly import panel_parts
 from ...models.box.factor import factorise
 from ...models.box.fit import sensor_operator
 from ...models.box.modal import rigid_probe
@@ -74,13 +75,7 @@ class Operators:
         pn = model.panel(panel)
         s = model.dof_slices[panel]
         idx = np.arange(s.start, s.stop)
-        units = pn.unit_stiffness()
-        parts: dict[str | None, np.ndarray] = {}
-        for term, U in units.items():
-            owners = [q.name for q in model.vehicle.parameters
-                      if q.kind == "panel" and q.group == pn.group and term in q.terms]
-            key = owners[0] if owners else None
-            parts[key] = parts.get(key, 0.0) + pn.rigidity[term] * U
+        parts = panel_parts(model.vehicle.parameters, pn)
         n = model.n_dof
 
         def full(block):

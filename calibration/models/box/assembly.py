@@ -268,6 +268,43 @@ class _Triplets:
         return A
 
 
+def scaling_parameter(parameters, kind: str, group: str, term: str, zoned: bool = False):
+    """The parameter of ``parameters`` scaling ``term`` of ``kind`` ``group`` (of the panels'
+    end strips with ``zoned``), or None; ValueError where several would."""
+    hits = [q for q in parameters if q.kind == kind and q.group == group and term in q.terms
+            and (q.end_zone > 0) == zoned]
+    if len(hits) > 1:
+        where = "end strips of " if zoned else ""
+        raise ValueError(f"{where}{kind} {group} {term} is scaled by several parameters: {[q.name for q in hits]}")
+    return hits[0] if hits else None
+
+
+def panel_parts(parameters, pn: Panel) -> dict[str | None, np.ndarray]:
+    """The stiffness of panel ``pn`` at its rigidities, split by the parameter that scales
+    each part (None: no parameter): a term's end strips to a zoned parameter, the rest of it
+    to the group's."""
+    units = pn.unit_stiffness()
+    strips = {}  # end-strip matrices, once per zone length
+    parts: dict[str | None, np.ndarray] = {}
+
+    def add(q, block):
+        key = None if q is None else q.name
+        parts[key] = parts.get(key, 0.0) + block
+
+    for term in MEMBRANE + BENDING:
+        group_q = scaling_parameter(parameters, "panel", pn.group, term)
+        zone = scaling_parameter(parameters, "panel", pn.group, term, zoned=True)
+        if zone is None:
+            add(group_q, pn.rigidity[term] * units[term])
+        else:
+            if zone.end_zone not in strips:
+                strips[zone.end_zone] = pn.unit_stiffness(zone.end_zone)
+            end = strips[zone.end_zone][term]
+            add(zone, pn.rigidity[term] * end)
+            add(group_q, pn.rigidity[term] * (units[term] - end))
+    return parts
+
+
 def assemble(vehicle: BoxVehicle) -> BoxModel:
     slices, n = {}, 0
     for pn in vehicle.panels:
@@ -284,34 +321,15 @@ def assemble(vehicle: BoxVehicle) -> BoxModel:
     M, C, K0 = _Triplets(n), _Triplets(n), _Triplets(n)
     K_units = {name: _Triplets(n) for name in names}
 
-    def scaled_by(kind, group, term, zoned=False):
-        """The parameter scaling this term (of the panels' end strips with ``zoned``), or None."""
-        hits = [q for q in vehicle.parameters if q.kind == kind and q.group == group and term in q.terms
-                and (q.end_zone > 0) == zoned]
-        if len(hits) > 1:
-            where = "end strips of " if zoned else ""
-            raise ValueError(f"{where}{kind} {group} {term} is scaled by several parameters: {[q.name for q in hits]}")
-        return hits[0] if hits else None
-
     def owner(kind, group, term):
-        q = scaled_by(kind, group, term)
+        q = scaling_parameter(vehicle.parameters, kind, group, term)
         return K0 if q is None else K_units[q.name]
 
     for pn in vehicle.panels:
         idx = np.arange(slices[pn.name].start, slices[pn.name].stop)
         M.add(idx, pn.rho_h * pn.unit_mass())
-        units = pn.unit_stiffness()
-        strips = {}  # end-strip matrices, once per zone length
-        for term in MEMBRANE + BENDING:
-            zone = scaled_by("panel", pn.group, term, zoned=True)
-            if zone is None:
-                owner("panel", pn.group, term).add(idx, pn.rigidity[term] * units[term])
-            else:  # the end strips to the zone's factor, the rest to the group's
-                if zone.end_zone not in strips:
-                    strips[zone.end_zone] = pn.unit_stiffness(zone.end_zone)
-                end = strips[zone.end_zone][term]
-                K_units[zone.name].add(idx, pn.rigidity[term] * end)
-                owner("panel", pn.group, term).add(idx, pn.rigidity[term] * (units[term] - end))
+        for key, block in panel_parts(vehicle.parameters, pn).items():
+            (K0 if key is None else K_units[key]).add(idx, block)
 
     for rb in vehicle.bodies:
         idx = np.arange(slices[rb.name].start, slices[rb.name].stop)
