@@ -88,6 +88,9 @@ def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tup
     for n in names:
         pr = priors.get(n)
         lo, hi, nom = (pr.low, pr.high, pr.nominal) if pr else (*ranges.get(n, DEFAULT_RANGE), 1.0)
+        if not lo > 0:  # a stiffness factor scales a stiffness: zero or less is no structure
+            raise InputError(f"a box factor is positive: priors.{n}.low must be above 0, got {lo:g}",
+                             key=f"priors.{n}.low")
         out.append(SearchParameter(n, nom, 0.3 * nom, lo, hi, 0.01 * nom))
     return tuple(out)
 

@@ -3,6 +3,7 @@ from identification to the FMU. The commands dispatch through :data:`MODELS` and
 loop over it, so adding a vehicle model is one entry here (and its functions)."""
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,8 +73,11 @@ def _diagnose_excitation(campaign, progress, calibration=None, calibration_path=
     model, start = calibrated_box_model(calibration)
     factors = factor_set(calibration.get("factor_set"), side_end_zone=calibration.get("side_end_zone_m"))
     fit = calibration.get("max_error_pct")
+    if fit is not None and (isinstance(fit, bool) or not isinstance(fit, (int, float)) or not 0 <= fit < math.inf):
+        raise InputError(f"'max_error_pct' must be a percentage (0 or more), got {fit!r}", path=calibration_path,
+                         key="max_error_pct")
     return diagnose_excitation(campaign, progress=progress, model=model, factors=factors, start=start,
-                               start_fit_pct=float(fit) if isinstance(fit, (int, float)) else None)
+                               start_fit_pct=None if fit is None else float(fit))
 
 
 def _car_example() -> dict:

@@ -418,11 +418,22 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
     for bad, word in (({"factor_set": "bespoke", "parameters": {}}, "bespoke"),
                       ({"factor_set": "credible", "parameters": {"roof_membrane": 1.0}}, "roof_membrane"),
                       ({"parameters": {"side_shear": float("nan")}}, "positive"),
-                      ({"factor_set": "windowed", "parameters": {}}, "windowed_length"),
-                      ({"factor_set": "windowed", "side_end_zone_m": 13.0, "parameters": {}}, "0-12.25 m"),
+                      ({"factor_set": "windowed", "parameters": {}}, "side_end_zone_m.*goes with"),
+                      ({"factor_set": "credible", "side_end_zone_m": 5.0, "parameters": {}}, "only with it"),
+                      ({"factor_set": "windowed", "side_end_zone_m": 13.0, "parameters": {}}, r"in \(0, 12.25\)"),
+                      ({"factor_set": "windowed", "side_end_zone_m": float("nan"), "parameters": {}}, "a length"),
                       ({"factor_set": "windowed", "side_end_zone_m": "5", "parameters": {}}, "a length")):
         with pytest.raises(InputError, match=word):
             calibrated_box_model(bad)
+
+
+def test_a_box_factors_prior_must_stay_above_zero():
+    from calibration.data.campaign import Prior
+    from calibration.data.errors import InputError
+    from calibration.models.box import factor_set
+
+    with pytest.raises(InputError, match=r"priors\.roof_shear\.low.*above 0"):
+        box_search({"roof_shear": Prior(1.0, 0.0, 2.0)}, factors=factor_set("credible"))
 
 
 def test_the_windowed_set_adds_the_side_walls_end_strips_and_its_file_rebuilds_them():
@@ -532,6 +543,12 @@ def test_the_box_model_is_calibrated_by_swarm_only(shaker, tmp_path, capsys):
     assert main(["calibrate", str(longer), "--model", "box", "--method", "pso", "--factors", "windowed",
                  "--out", str(tmp_path / "c.json")]) == 2
     assert "no side wall beyond the windows" in capsys.readouterr().err
+    bad_fit = tmp_path / "bad_fit.json"
+    bad_fit.write_text(json.dumps({"model": "box", "method": "pso", "factor_set": "grouped", "parameters": {},
+                                   "max_error_pct": "small"}))
+    assert main(["diagnose", str(root), "--calibration", str(bad_fit), "--out", str(tmp_path / "d.json")]) == 2
+    assert "bad_fit.json" in (err := capsys.readouterr().err) and "max_error_pct" in err
+    assert not (tmp_path / "d.json").exists()
     assert main(["calibrate", "--targets", str(good), "--model", "box", "--method", "pso", "--factors", "windowed",
                  "--out", str(tmp_path / "c.json")]) == 2
     assert "windowed_length" in capsys.readouterr().err

@@ -329,11 +329,15 @@ def calibrated_box_model(calibration: dict):
     panel orders plus ``order_change`` (files without one: 0), every factor it does not name
     nominal. InputError for an unknown set or factor, a factor that is not a positive
     number, or an ``order_change`` that is not an integer."""
-    zone = calibration.get("side_end_zone_m")
-    if zone is not None and (isinstance(zone, bool) or not isinstance(zone, (int, float))):
-        raise InputError(f"'side_end_zone_m' must be a length [m], got {zone!r}", key="side_end_zone_m")
+    name, zone = calibration.get("factor_set"), calibration.get("side_end_zone_m")
+    if (zone is None) != (name != WINDOWED):
+        raise InputError(f"'side_end_zone_m' goes with factor_set {WINDOWED!r} and only with it (factor_set "
+                         f"{name!r}, side_end_zone_m {zone!r})", key="side_end_zone_m")
+    half = Geometry().length / 2
+    if zone is not None and (isinstance(zone, bool) or not isinstance(zone, (int, float)) or not 0 < zone < half):
+        raise InputError(f"'side_end_zone_m' must be a length [m] in (0, {half:g}), got {zone!r}", key="side_end_zone_m")
     try:
-        factors = factor_set(calibration.get("factor_set"), side_end_zone=zone)
+        factors = factor_set(name, side_end_zone=zone)
     except ValueError as e:
         raise InputError(str(e), key="factor_set") from None
     params = calibration.get("parameters", {})
