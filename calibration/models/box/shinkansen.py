@@ -335,7 +335,8 @@ def calibrated_box_model(calibration: dict):
                          f"{name!r}, side_end_zone_m {zone!r})", key="side_end_zone_m")
     half = Geometry().length / 2
     if zone is not None and (isinstance(zone, bool) or not isinstance(zone, (int, float)) or not 0 < zone < half):
-        raise InputError(f"'side_end_zone_m' must be a length [m] in (0, {half:g}), got {zone!r}", key="side_end_zone_m")
+        raise InputError(f"'side_end_zone_m' must be a length [m] in (0, {half:g}), got {zone!r}",
+                         key="side_end_zone_m")
     try:
         factors = factor_set(name, side_end_zone=zone)
     except ValueError as e:
