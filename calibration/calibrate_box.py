@@ -95,6 +95,12 @@ def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tup
     return tuple(out)
 
 
+def wide_search(search: tuple[SearchParameter, ...]) -> bool:
+    """Does the search span a ratio of 16 or more in some factor? Then a swarm moves in the
+    factors' logarithms (:class:`SwarmSettings`)."""
+    return max(q.high / q.low for q in search) >= 16
+
+
 def swarm_box(fit: BoxFit, search: tuple[SearchParameter, ...], rng: np.random.Generator, settings: PSOSettings, *,
               log_factors: bool = False, progress=None, desc: str = "particle swarm"):
     """The seed's swarm on ``fit`` (RTRI eq. 3), its basis built at the search's centre and

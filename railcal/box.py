@@ -56,8 +56,8 @@ def modes(args) -> dict:
 
 
 def calibrate(args) -> str:
-    from calibration.calibrate_box import (RefineSettings, SwarmSettings, calibrate_box_campaign,
-                                           campaign_factor_set)
+    from calibration.calibrate_box import (RefineSettings, SwarmSettings, box_search, calibrate_box_campaign,
+                                           campaign_factor_set, wide_search)
     from calibration.optimisers.pso import PSOSettings
 
     if args.method != "pso":
@@ -78,8 +78,12 @@ def calibrate(args) -> str:
             factors = campaign_factor_set(args.factors, campaign)
         except ValueError as e:
             raise InputError(str(e), key="--factors") from None
+        try:
+            wide = wide_search(box_search(campaign.meta.priors, factors=factors))
+        except InputError as e:
+            raise e.located(campaign.root / "campaign.toml") from None
         swarm = SwarmSettings(pso=settings, seed=args.seed, swarms=swarms, done_pct=CAMPAIGN_DONE_PCT,
-                              log_factors=_wide(factors, campaign.meta.priors))
+                              log_factors=wide)
         identified = None
         if args.identification is not None:
             from calibration.identification.excitation import IdentifiedShapes
@@ -105,15 +109,6 @@ def calibrate(args) -> str:
             f"{result.max_error_pct:.3g} % over {len(result.fit)} modes, MAC >= "
             f"{min(r['mac'] for r in result.fit):.3f}{unsound_note(result.fit)}; "
             f"{result.identifiability['summary']}; wrote {args.out}")
-
-
-def _wide(factors, priors) -> bool:
-    """Does the search span a ratio of 16 or more in some factor (the campaign's prior, else
-    the set's range)? Then the particles move in the factors' logarithms
-    (:class:`calibration.calibrate_box.SwarmSettings`)."""
-    spans = [(priors[n].high / priors[n].low) if n in priors else hi / lo
-             for n, (lo, hi) in zip(factors.names, factors.ranges)]
-    return max(spans) >= 16
 
 
 def unsound_note(fit) -> str:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...calibrate_box import box_search
+from ...calibrate_box import box_search, wide_search
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
 from ...identification.excitation import ExcitationIdentification, identify_excitation
@@ -51,8 +51,8 @@ class Context:
 
     @property
     def log_factors(self) -> bool:
-        """Do the factors span ratios of 16 or more? Then the swarms move in their logarithms."""
-        return max(q.high / q.low for q in self.search) >= 16
+        """Do the swarms move in the factors' logarithms (:func:`wide_search`)?"""
+        return wide_search(self.search)
 
     @property
     def model(self) -> BoxModel:
