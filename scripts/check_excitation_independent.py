@@ -50,10 +50,9 @@ FIRST_SEED = 6100
 WITHIN_PCT, STRAY_PCT = 0.5, 1.0
 
 
-def _calibrate(campaign, ident, factors: str):
-    if factors == "grouped":  # the command's defaults
+def _calibrate(campaign, ident, fs):
+    if fs.name == "grouped":  # the command's defaults
         return calibrate_box_campaign(campaign, identified=ident)[0]
-    fs = campaign_factor_set(factors, campaign)
     swarm = SwarmSettings(pso=PSOSettings(particles=300, iterations=300), swarms=CAMPAIGN_SWARMS,
                           done_pct=CAMPAIGN_DONE_PCT, log_factors=True)
     return calibrate_box_campaign(campaign, identified=ident, factors=fs, swarm=swarm,
@@ -79,9 +78,9 @@ def check(seed: int, workdir: Path, factors: str) -> dict:
                       "error_pct": round(err, 3),
                       "verdict": "within" if abs(err) <= WITHIN_PCT else ("off" if abs(err) <= STRAY_PCT else
                                                                            "STRAY")})
-    cal = _calibrate(campaign, ident, factors)
-    t3 = time.perf_counter()
     fs = campaign_factor_set(factors, campaign)
+    cal = _calibrate(campaign, ident, fs)
+    t3 = time.perf_counter()
     ranges = dict(zip(fs.names, fs.ranges))
     bounds = [n for n, v in cal.parameters.items() if min(abs(v / ranges[n][0] - 1), abs(v / ranges[n][1] - 1)) < 1e-4]
     return {"seed": seed, "factor_set": factors, "modes": modes,
