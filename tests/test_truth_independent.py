@@ -299,3 +299,30 @@ def test_lint_imports_keeps_the_independence_contract():
     exe = Path(sys.executable).with_name("lint-imports")
     r = subprocess.run([str(exe)], cwd=PACKAGE.parents[2], capture_output=True, text=True, timeout=300)
     assert "shares no model-building code with railcal KEPT" in r.stdout, r.stdout[-2000:]
+
+
+def _secondary_motion(friction: float, amplitude: float) -> float:
+    """RMS relative velocity [m/s] across the leading bogie's air springs, the car on its
+    track driven by a 1.2 Hz rail bounce of ``amplitude`` [m] under every wheel."""
+    from calibration.truth.independent.simulate import run_in, simulate
+
+    p = car_parameters(INTERCITY, secondary_friction=friction)
+    m = build_car(p)
+    h, n = 1e-3, 6000
+    t = np.arange(n) * h
+    inputs = np.zeros((n, 8))
+    inputs[:, :4] = (amplitude * np.sin(2 * np.pi * 1.2 * t))[:, None]
+    above = m.beam_nodes[int(np.argmin(np.abs(np.asarray(p.x_nodes) - p.L_v)))]
+    out = simulate(m, run_in(inputs, 1000), h, {"carbody": above, "bogie": m.bogie_nodes[0]})
+    v = out["carbody"][1][-3000:, 1] - out["bogie"][1][-3000:, 1]
+    return float(np.sqrt(np.mean(v * v)))
+
+
+@pytest.mark.slow(seconds=3)
+def test_dry_friction_across_the_air_springs_holds_a_small_motion_more_than_a_large_one():
+    """Friction's force does not grow with the motion: against a car without it, it cuts
+    the air springs' relative motion more on a quiet track than on a rough one."""
+    assert parse_hidden("suspension_friction=800")[0].catalogued is False
+    small = _secondary_motion(1500.0, 0.5e-3) / _secondary_motion(0.0, 0.5e-3)
+    large = _secondary_motion(1500.0, 8e-3) / _secondary_motion(0.0, 8e-3)
+    assert small < 0.8 * large and large < 1.0

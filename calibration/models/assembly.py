@@ -160,6 +160,17 @@ def _point_rows(bodies, dofs, att: Attachment, inputs=()):
     return g, h
 
 
+def elongation_rows(asm: Assembly, element: str) -> tuple[np.ndarray, np.ndarray]:
+    """(g, h): the elongation of ``asm``'s spring-damper named ``element`` is g @ q + h @ u
+    (the signs of :func:`assemble`)."""
+    e = next((e for e in asm.elements if e.name == element), None)
+    if e is None:
+        raise KeyError(f"no spring-damper {element!r}; have {', '.join(x.name for x in asm.elements)}")
+    g_top, h_top = _point_rows(asm.bodies, asm.dofs, e.top, asm.inputs)
+    g_bot, h_bot = _point_rows(asm.bodies, asm.dofs, e.bottom, asm.inputs)
+    return g_top - g_bot, h_top - h_bot
+
+
 def assemble(bodies: list[Body], elements: list[SpringDamper], inputs: list[str]) -> Assembly:
     """Assemble M, C, K, B_k, B_c from bodies and spring-dampers."""
     names = [b.name for b in bodies]

@@ -241,6 +241,7 @@ def scores(ev: Evidence, lay: Layout, s: DiagnosisSettings) -> dict[str, float]:
         "carbody_bending": fixed_mid / s.peak_alarm,
         "mounted_equipment": 0.5 * fixed_mid / s.peak_alarm + max([coh[n] for n in carbody] + [0.0]),
         "journey_load": max([coh[n] for n in carbody] + [0.0]),
+        "amplitude_dependent_suspension": max([coh[n] for n in bogie + carbody] + [0.0]),
         "cog_offset": max([ch[n]["low_band_coherence"] for n in carbody] + [0.0]),
         "airspring_reservoir": max([coh[n] for n in carbody] + [0.0]) + 0.5 * bool(at_bounds & {"k_s", "c_s"}),
         "wheel_out_of_round": (w["over_floor"] / s.line_alarm) * (w["axle_asymmetry"] >= s.asymmetry),

@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ...models.car2d import CarExtras, hung_body
+from .amplitude import FRICTION
 from .records import Layout
 from .response import ParamRange, SensorModel
 
@@ -66,6 +67,10 @@ FLOOR_FAULT_M = 0.3
 #: The largest misplacement searched [m], as for the bogie sensors.
 FLOOR_DX_M = 2.5
 
+#: The friction forces searched [N] per bogie's secondary and per wheelset's primary: from
+#: what an air spring's own hysteresis gives to what a friction-damped bogie carries.
+FRICTION_RANGE_N = (10.0, 5000.0)
+
 
 @dataclass(frozen=True)
 class Extension:
@@ -97,6 +102,10 @@ class Extension:
     # sizes derived from the fitted parameters (the worst-placed sensor's |dx|), which
     # normal_within and fault_from may name
     sizes: Callable[[dict], dict] | None = None
+    # parameters (log ranges) whose range's low end means the effect is absent there (a
+    # friction force of 10 N): fitted at that end, the extension is not standing in for
+    # something else (selection._stands_in)
+    absent_at_low: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -216,6 +225,11 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
               "the load (passengers, luggage, tanks' fill) changing between journeys: the carbody's mass, "
               "inertia and bending mass, and the levelled air springs' stiffness, per journey",
               (), lambda v: (CarExtras(), SensorModel()), always_normal=True, per_run=True),
+    Extension("amplitude_dependent_suspension", "response",
+              "dry friction in the secondary and primary suspension (each bogie's, each wheelset's): damping "
+              "that falls as the amplitude grows, linearised at each cell's relative velocity (sqrt(2/pi) F / sigma)",
+              tuple(ParamRange(n, *FRICTION_RANGE_N) for n in FRICTION),
+              lambda v: (CarExtras(), SensorModel()), always_normal=True, absent_at_low=FRICTION),
     Extension("floor_sensor_offset", "response",
               "carbody floor accelerometers off their declared x (dx per sensor), their gains within a "
               "calibration's tolerance",

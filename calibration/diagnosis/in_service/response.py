@@ -22,6 +22,7 @@ import scipy.optimize
 
 from ...models.car2d import CarExtras, Output, build_car, dynamic_stiffness, output_rows
 from ...models.parameters import CarParameters
+from .amplitude import FRICTION, AmplitudeClasses, amplitude_classes
 from .records import Layout, Statistics
 
 #: baseline parameters the response fit adjusts (geometry is known; m_w does not enter a
@@ -150,24 +151,31 @@ class ResponseFit:
     # statistics cell -> the load it was measured at (:func:`loaded`; absent: 0), when the
     # fit has a load per journey
     loads: Mapping = field(default_factory=dict)
+    # statistics cell -> (dc_s, dc_p) [N s/m], the damping its amplitude adds to the fitted
+    # car's (absent: none), when the fit has friction (:mod:`.amplitude`)
+    damping: Mapping = field(default_factory=dict)
 
-    def groups(self, keys) -> dict[float, list]:
-        """``keys`` by the load their cells were measured at."""
-        out: dict[float, list] = {}
+    def groups(self, keys) -> dict[tuple, list]:
+        """``keys`` by the (load, added damping) their cells were measured at."""
+        out: dict[tuple, list] = {}
         for k in keys:
-            out.setdefault(float(self.loads.get(k, 0.0)), []).append(k)
+            out.setdefault((float(self.loads.get(k, 0.0)), tuple(self.damping.get(k, (0.0, 0.0)))), []).append(k)
         return out
 
-    def transfer(self, lay: Layout, f: np.ndarray, load: float = 0.0) -> np.ndarray:
-        """The fitted model's transfer (:func:`transfer`) at ``load``."""
+    def transfer(self, lay: Layout, f: np.ndarray, state: tuple = (0.0, (0.0, 0.0))) -> np.ndarray:
+        """The fitted model's transfer (:func:`transfer`) at a cell's ``state``: its load and
+        the (secondary, primary) damping its amplitude adds."""
+        load, (dc_s, dc_p) = state
         p, extras = loaded(self.parameters, self.extras, load)
+        if dc_s or dc_p:
+            p = p.replace(c_s=p.c_s + dc_s, c_p=p.c_p + dc_p)
         return transfer(p, extras, self.sensors, lay, f)
 
     def per_group(self, stats: Statistics, lay: Layout, keys):
-        """(transfer, band sums, cells) for each load among ``keys``."""
-        for load, ks in sorted(self.groups(keys).items()):
+        """(transfer, band sums, cells) for each cell state among ``keys``."""
+        for state, ks in sorted(self.groups(keys).items()):
             S, _ = stats.total(lambda k, ks=set(ks): k in ks)
-            yield self.transfer(lay, stats.centres, load), S, ks
+            yield self.transfer(lay, stats.centres, state), S, ks
 
 
 @dataclass(frozen=True)
@@ -196,10 +204,12 @@ class ResponseProblem:
     channel normalised by its training power, with its gradient; parameters in log space
     (or linear) within bounds.
     ``per_run``: each training run but the first carries a load (:func:`loaded`) of its own,
-    the first the fit's reference."""
+    the first the fit's reference. ``amplitude``: with friction parameters among
+    ``ext_params`` (:data:`.amplitude.FRICTION`), each amplitude class of the training cells
+    carries the damping the friction adds at its amplitude. Each (run, class) is one car."""
 
     def __init__(self, stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict,
-                 ext_params: tuple, make, per_run: bool = False):
+                 ext_params: tuple, make, per_run: bool = False, amplitude: AmplitudeClasses | None = None):
         self.lay, self.base, self.bounds = lay, base, dict(bounds)
         self.S, _ = stats.total(lambda k: k in train_keys)
         self.f = stats.centres
@@ -208,7 +218,12 @@ class ResponseProblem:
         self.norm = 1.0 / np.maximum(power.sum(axis=0), 1e-300)
         runs = sorted({k[0] for k in train_keys})
         self.runs = runs if per_run else []
-        self.S_run = {r: stats.total(lambda k, r=r: k in train_keys and k[0] == r)[0] for r in self.runs}
+        self.amplitude = amplitude if any(r.name in FRICTION for r in ext_params) else None
+        cells: dict = {}
+        for k in stats.ordered(train_keys):
+            cells.setdefault((k[0] if self.runs else "", self.amplitude.of(k) if self.amplitude else -1), []).append(k)
+        self.groups = [(run or None, None if cls < 0 else cls, stats.total(lambda k, ks=set(ks): k in ks)[0])
+                       for (run, cls), ks in sorted(cells.items())]
         loads = [ParamRange(_load_name(r), -LOAD_RANGE, LOAD_RANGE, log=False) for r in self.runs[1:]]
         self.ranges = [ParamRange(n, lo, hi) for n, (lo, hi) in self.bounds.items()] + list(ext_params) + loads
         self.lo = np.array([np.log(r.low) if r.log else r.low for r in self.ranges])
@@ -216,9 +231,9 @@ class ResponseProblem:
         self.make = make or (lambda v: (CarExtras(), SensorModel()))
         self.nb = len(self.bounds)
         self.n_ext = len(ext_params)
-        # a run's load parameter (its index in x) -> the load group it alone moves
-        self.owner = {i: g for g, run in enumerate(self.runs) for i, r in enumerate(self.ranges)
-                      if r.name == _load_name(run)}
+        # a run's load parameter (its index in x) -> the groups it alone moves
+        self.owner = {i: {g for g, (run, _, _) in enumerate(self.groups) if run == r.name[len("load:"):]}
+                      for i, r in enumerate(self.ranges) if r.name.startswith("load:")}
         self.count = 0
 
     def unpack(self, x):
@@ -231,12 +246,18 @@ class ResponseProblem:
         return {r: vals.get(_load_name(r), 0.0) for r in self.runs}
 
     def cars(self, x) -> list[tuple]:
-        """(parameters, extras, sensors, training band sums) of each load group: one, or
-        one per training run with ``per_run``."""
+        """(parameters, extras, sensors, training band sums) of each group: one, or one per
+        training run with ``per_run``, and per amplitude class with friction."""
         p, extras, sensors, vals = self.unpack(x)
-        if not self.runs:
-            return [(p, extras, sensors, self.S)]
-        return [(*loaded(p, extras, load), sensors, self.S_run[r]) for r, load in self.run_loads(vals).items()]
+        loads = self.run_loads(vals)
+        out = []
+        for run, cls, S in self.groups:
+            pp, ee = loaded(p, extras, loads[run]) if run is not None else (p, extras)
+            if cls is not None:
+                dc_s, dc_p = self.amplitude.added(vals, self.amplitude.sigma[cls])
+                pp = pp.replace(c_s=pp.c_s + dc_s, c_p=pp.c_p + dc_p)
+            out.append((pp, ee, sensors, S))
+        return out
 
     def residual_power(self, x) -> np.ndarray:
         """Training residual power per band and channel, (n_band, n_out)."""
@@ -264,7 +285,7 @@ class ResponseProblem:
             xs = x.copy()
             xs[i] += h
             cars = self.cars(xs)
-            shifted.append([None if owner.get(i, g) != g else _system(*cars[g][:3], self.lay, w)
+            shifted.append([None if i in owner and g not in owner[i] else _system(*cars[g][:3], self.lay, w)
                             for g in range(len(groups))])
         cost, grad = 0.0, np.zeros(idx.size)
         for g, (p, extras, sensors, S) in enumerate(groups):
@@ -349,7 +370,8 @@ def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys
             norm = 1.0 / np.maximum(channel_power(S, 4, n_out).sum(axis=0), 1e-300)
 
             def cost(load):
-                return float((residual_power(model.transfer(lay, stats.centres, load), S, 4, n_out) * norm).sum())
+                return float((residual_power(model.transfer(lay, stats.centres, (load, (0.0, 0.0))), S, 4, n_out)
+                              * norm).sum())
 
             sol = scipy.optimize.minimize_scalar(cost, bounds=(-LOAD_RANGE, LOAD_RANGE), method="bounded",
                                                  options={"xatol": 1e-4})
@@ -360,7 +382,7 @@ def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys
 def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict, *,
                  ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6,
                  known: Mapping[str, float] | None = None, rng: np.random.Generator | None = None,
-                 per_run: bool = False, heldout_keys=()) -> ResponseFit:
+                 per_run: bool = False, heldout_keys=(), amplitude: AmplitudeClasses | None = None) -> ResponseFit:
     """Fit the baseline parameters in ``bounds`` ({name: (low, high)}) and the extension
     parameters ``ext_params`` (``make(values) -> (CarExtras, SensorModel)``) to the training
     statistics. Without an extension: one fit from ``base``. With one: a
@@ -370,10 +392,15 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
     which start at these values and take no part in the global stage.
     ``per_run``: every run carries a load of its own (:func:`loaded`), fitted with the rest
     on the training runs and, for the runs of ``heldout_keys``, cross-fitted
-    (:func:`_cross_fitted_loads`); the fitted car carries the training runs' mean load."""
+    (:func:`_cross_fitted_loads`); the fitted car carries the training runs' mean load.
+    ``amplitude``: the cells' amplitude classes, for friction among ``ext_params``; the
+    fitted car carries the damping at the training cells' amplitude, each cell (training and
+    held out) its class's difference from it."""
     rng = np.random.default_rng(0) if rng is None else rng
     known = dict(known or {})
-    pr = ResponseProblem(stats, lay, train_keys, base, bounds, ext_params, make, per_run)
+    if amplitude is None and any(r.name in FRICTION for r in ext_params):
+        amplitude = amplitude_classes(base, stats, train_keys, heldout_keys)
+    pr = ResponseProblem(stats, lay, train_keys, base, bounds, ext_params, make, per_run, amplitude)
     nb, n = pr.nb, len(pr.ranges)
     mid = {r.name: (np.sqrt(r.low * r.high) if r.log else 0.5 * (r.low + r.high)) for r in pr.ranges[nb:]}
     x_base = pr.x_of({**base.as_dict(), **mid, **known})
@@ -396,7 +423,14 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
     at = tuple(r.name for i, r in enumerate(pr.ranges)
                if span[i] > 0 and min(x[i] - pr.lo[i], pr.hi[i] - x[i]) < 0.01 * span[i])
     values = {r.name: vals[r.name] for r in pr.ranges[nb:nb + pr.n_ext]}
+    if pr.amplitude is not None:
+        a = pr.amplitude
+        dc_s, dc_p = a.added(vals, a.reference)
+        p = p.replace(c_s=p.c_s + dc_s, c_p=p.c_p + dc_p)
+        values["amplitude_reference_m_per_s"] = {"secondary": a.reference[0], "primary": a.reference[1]}
     fit = ResponseFit(p, extras, sensors, values, nrp, at, pr.count)
+    if pr.amplitude is not None:
+        fit = replace(fit, damping={k: pr.amplitude.relative(vals, k) for k in set(train_keys) | set(heldout_keys)})
     if not per_run:
         return fit
     # the car at the training runs' mean load; each run's load against it
@@ -430,8 +464,8 @@ def residuals_by_cell(stats: Statistics, lay: Layout, keys, fit: ResponseFit) ->
     """Per-band residual power (n_band, n_response) of each statistics cell in ``keys``,
     from one evaluation of the model's transfer per load."""
     out = {}
-    for load, ks in fit.groups(keys).items():
-        G = fit.transfer(lay, stats.centres, load)
+    for state, ks in fit.groups(keys).items():
+        G = fit.transfer(lay, stats.centres, state)
         out.update({k: residual_power(G, stats.S[k], 4, len(lay.responses)) for k in ks})
     return out
 

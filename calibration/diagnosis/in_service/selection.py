@@ -95,8 +95,14 @@ def _stands_in(ext: Extension, h: Hypothesis) -> bool:
     """An extension for what every vehicle has (:attr:`.extensions.Extension.always_normal`)
     fitted with a parameter on a bound of its range is standing in for something it cannot
     model (a mount at its stiffest standing for a centre of mass off the middle, its damping
-    at the top for a low-frequency misfit): it is not that property, and not kept."""
-    return ext.always_normal and any(r.name in h.parameters_at_bounds for r in ext.params)
+    at the top for a low-frequency misfit): it is not that property, and not kept. A
+    parameter whose low end means the effect is absent there (:attr:`.extensions.Extension.absent_at_low`:
+    no friction in the primary) may end there."""
+    def standing(r) -> bool:
+        if r.name not in h.parameters_at_bounds:
+            return False
+        return not (r.name in ext.absent_at_low and h.parameters[r.name] < np.sqrt(r.low * r.high))
+    return ext.always_normal and any(standing(r) for r in ext.params)
 
 
 def kept(ext: Extension, h: Hypothesis, s) -> bool:

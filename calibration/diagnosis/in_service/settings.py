@@ -35,7 +35,7 @@ class DiagnosisSettings:
     peak_alarm: float = 4.0  # residual PSD peak over its floor
     line_alarm: float = 30.0  # wheel-line power over floor (with one-sided wheelset asymmetry)
     asymmetry: float = 2.0  # line power ratio between the two axle boxes of a wheel line
-    fit_leading: int = 9  # hypotheses fitted, best evidence first
+    fit_leading: int = 10  # hypotheses fitted, best evidence first
     starts: int = 6  # global-stage starts of a response extension's fit
     signal_factor: float = 4.0  # a signal band stands this far above the channel's spectral floor
     input_noise_share: float = 0.3  # bands where input noise makes more of the residual are not evidence

@@ -180,6 +180,9 @@ class _Effects:
         if e.name == "load_variation":
             self.load_variation = mag
             return {"fraction_of_carbody_mass": mag}
+        if e.name == "suspension_friction":
+            self.car["secondary_friction"] = mag
+            return {"secondary_friction_n_per_bogie": mag}
         raise ValueError(f"effect {e.name} is not simulated by the independent truth")
 
 

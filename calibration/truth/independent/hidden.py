@@ -18,6 +18,9 @@ Near-mimics outside the catalogue (the diagnosis has no extension for them):
 
 * ``rigid_equipment`` [kg]: a mass of MAGNITUDE bolted rigidly to the floor at a drawn x;
 * ``load_variation`` [-]: the journeys' payload differs by up to +-MAGNITUDE x the carbody mass;
+* ``suspension_friction`` [N]: dry friction of MAGNITUDE across each bogie's air springs (a
+  binding guide or a friction-damped bolster), which damps a quiet ride more than a rough
+  one; the diagnosis fits it as a property (``amplitude_dependent_suspension``), not a cause;
 
 and any two of the above joined by ``+`` (``cog_offset=0.8+carbody_bending=8``).
 
@@ -60,6 +63,7 @@ RANGES = {  # name: (low, high, default, unit, catalogued)
     "floor_sensor_offset": (0.3, 1.5, 0.8, "m", True),
     "rigid_equipment": (300.0, 1000.0, 700.0, "kg", False),
     "load_variation": (0.05, 0.2, 0.12, "-", False),
+    "suspension_friction": (300.0, 1500.0, 800.0, "N", False),
 }
 
 

@@ -145,8 +145,10 @@ def build_car(p: CarParameters, *, stiff_carbody: bool = False, rigid_track: boo
         res = mbs.AddObject(ei.ObjectConnectorCoordinateSpringDamper(markerNumbers=[mp, mby]))
         _symbolic(m, bag, _gas_law(p0, a.v_bag, a.area, a.n, 0.0, 0.0))
         _symbolic(m, res, _gas_law(p0, a.v_res, a.area, a.n, a.c_quadratic, a.c_linear))
-        mbs.AddObject(ei.ObjectConnectorCoordinateSpringDamper(markerNumbers=[mc, mby], stiffness=0.0,
-                                                               damping=p.c_s))
+        damper = mbs.AddObject(ei.ObjectConnectorCoordinateSpringDamper(markerNumbers=[mc, mby], stiffness=0.0,
+                                                                        damping=p.c_s))
+        if p.secondary_friction > 0:
+            _symbolic(m, damper, _friction_damper(p.c_s, p.secondary_friction))
         f_primary = (loads[ib] + p.m_b[ib] * GRAVITY) / 2
         for jw, dx in enumerate((p.L_b, -p.L_b)):
             j = 2 * ib + jw
@@ -253,6 +255,18 @@ def _pad(delta0, k_pad, c_pad, eps, mod):
     """Rail pad of stiffness k_pad (1 + eps mod) compressed by delta0 - u."""
     def f(mbs, t, itemNumber, u, v, k, d, offset):
         return -k_pad * (1.0 + eps * mod) * (delta0 - u) + c_pad * v
+    return f
+
+
+#: relative speed [m/s] under which the dry friction is regularised (linear through zero):
+#: small against the secondary's relative velocities (10-30 mm/s rms on the bench's lines)
+FRICTION_VELOCITY = 1.0e-3
+
+
+def _friction_damper(c, friction):
+    """Viscous damper ``c`` and dry friction ``friction`` [N], F tanh(v / FRICTION_VELOCITY)."""
+    def f(mbs, t, itemNumber, u, v, k, d, offset):
+        return c * v + friction * esym.tanh(v / FRICTION_VELOCITY)
     return f
 
 

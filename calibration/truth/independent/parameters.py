@@ -84,10 +84,11 @@ class CarParameters:
     L_b: float
     wheel_radius: float
     track: TrackParameters = field(default_factory=TrackParameters)
+    secondary_friction: float = 0.0  # dry friction across each bogie's air springs [N] (a fault)
 
     def __post_init__(self):
         checks.positive(self, "EI", "J_b", "m_w", "k_p", "k_s", "L_v", "L_b", "wheel_radius", "v_knee")
-        checks.non_negative(self, "c_p", "c_s", "bending_damping_ratio")
+        checks.non_negative(self, "c_p", "c_s", "bending_damping_ratio", "secondary_friction")
         checks.fraction(self, "c_p_high_ratio", closed=True)
         if len(self.mu) != len(self.x_nodes) - 1 or min(self.mu) < 0:
             raise ValueError("CarParameters.mu must give a non-negative mass per length for each beam element")
@@ -189,12 +190,14 @@ def car_parameters(spec: VehicleSpec, *, payload: dict | None = None, payload_ce
                    bending_hz: float | None = None, reservoir_ratio: float = 1.0,
                    orifice_quadratic: float = 2.0e4, rigid_equipment: bool = False,
                    track: TrackParameters | None = None, bending_damping_ratio: float = 0.02,
-                   structure_centre: float = 0.0, extra_equipment: tuple = ()) -> CarParameters:
+                   structure_centre: float = 0.0, extra_equipment: tuple = (),
+                   secondary_friction: float = 0.0) -> CarParameters:
     """The car ``spec`` with ``payload`` [kg] by name (default: mid-range), the floor's
     payload centred at ``payload_centre`` [m], damping [N s/m] and bending [Hz] (default:
     the library's), the air springs' reservoir volume as ``reservoir_ratio`` x the bag's,
     the structure's mass centre at ``structure_centre`` [m], ``extra_equipment`` added as
-    (name, mass, x, mount_hz or None, damping ratio)."""
+    (name, mass, x, mount_hz or None, damping ratio), ``secondary_friction`` [N] across each
+    bogie's air springs."""
     payload = spec.nominal_payload() if payload is None else payload
     x = beam_mesh(spec, elements)
     beta = mass_shape(spec, elements)
@@ -226,7 +229,8 @@ def car_parameters(spec: VehicleSpec, *, payload: dict | None = None, payload_ce
         bending_damping_ratio=bending_damping_ratio, equipment=tuple(equipment), m_b=tuple(spec.m_b),
         J_b=spec.J_b, m_w=spec.m_w, k_p=spec.k_p, c_p=spec.c_p if c_p is None else c_p, c_p_high_ratio=0.3,
         v_knee=0.08, k_s=spec.k_s, c_s=spec.c_s if c_s is None else c_s, air=air, L_v=spec.L_v, L_b=spec.L_b,
-        wheel_radius=spec.wheel_radius, track=TrackParameters() if track is None else track)
+        wheel_radius=spec.wheel_radius, track=TrackParameters() if track is None else track,
+        secondary_friction=secondary_friction)
 
 
 def car_parameters_nominal_load(spec: VehicleSpec) -> float:

@@ -1,0 +1,156 @@
+"""The amplitude-dependent suspension extension (issue 31): dry friction statistically
+linearised at each cell's amplitude. Its physics (the linearisation's constant, the
+suspension's relative velocity) is checked against closed forms and a second route; its
+fit on band sums made by the linearised car itself is a unit test of the code, not
+evidence that the diagnosis finds friction in data it did not make (that is the bench's,
+``scripts/bench_diagnose.py --truth exudyn --only suspension_friction``)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from calibration.diagnosis.in_service import DiagnosisSettings
+from calibration.diagnosis.in_service.amplitude import FRICTION, GAUSSIAN, amplitude_classes, suspension_rms
+from calibration.diagnosis.in_service.extensions import EXTENSIONS
+from calibration.diagnosis.in_service.hypotheses import Hypothesis
+from calibration.diagnosis.in_service.records import Layout, Statistics
+from calibration.diagnosis.in_service.response import (FIT_NAMES, ResponseProblem, SensorModel, fit_response,
+                                                       transfer)
+from calibration.diagnosis.in_service.selection import kept
+from calibration.models.assembly import elongation_rows
+from calibration.models.car2d import CarExtras, Output, build_car, frequency_response
+from calibration.models.vehicles import INTERCITY_TRAILER
+
+F = np.geomspace(0.5, 25.0, 90)
+
+
+def test_dry_friction_linearised_on_a_gaussian_velocity_is_sqrt_2_over_pi_f_over_sigma():
+    rng = np.random.default_rng(3)
+    for sigma in (0.005, 0.02):
+        v = rng.normal(0.0, sigma, 400_000)
+        c_eq = np.mean(700.0 * np.sign(v) * v) / np.mean(v * v)  # the mean-square best viscous damper
+        assert c_eq == pytest.approx(GAUSSIAN * 700.0 / sigma, rel=0.01)
+
+
+def test_a_uniform_rail_rise_stretches_no_suspension_element():
+    """The car lifted bodily by a unit rise of every rail: springs and dampers do not move."""
+    asm = build_car(INTERCITY_TRAILER)
+    q = np.linalg.solve(asm.K, asm.B_k @ np.ones(4))
+    for name in ("secondary1", "secondary2", "primary1", "primary4"):
+        g, h = elongation_rows(asm, name)
+        assert g @ q + h.sum() == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(KeyError, match="no spring-damper 'tertiary'"):
+        elongation_rows(asm, "tertiary")
+
+
+def _input_cells(levels, rng, *, one_spectrum: bool = False) -> Statistics:
+    """Cells of rail input only, each ``levels[i]`` x a random spectrum (the same one with
+    ``one_spectrum``)."""
+    stats = Statistics(("u1", "u2", "u3", "u4"), np.r_[F, 26.0], F, 10.0)
+    X = rng.normal(size=(F.size, 4, 6)) + 1j * rng.normal(size=(F.size, 4, 6))
+    for i, a in enumerate(levels):
+        if not one_spectrum and i:
+            X = rng.normal(size=(F.size, 4, 6)) + 1j * rng.normal(size=(F.size, 4, 6))
+        stats.S[("r", 20.0 + i)] = a * a * X @ X.conj().transpose(0, 2, 1)
+        stats.seconds[("r", 20.0 + i)] = 50.0
+    return stats
+
+
+def test_suspension_rms_is_the_relative_velocity_of_the_cars_own_frequency_response():
+    """Second route: velocities of the carbody and bogie at the pivot (and of the bogie over
+    a wheelset, less the rail's) from the car's frequency response to rail levels."""
+    p = INTERCITY_TRAILER
+    stats = _input_cells([1.0, 2.0], np.random.default_rng(4), one_spectrum=True)
+    got = suspension_rms(p, CarExtras(), stats, set(stats.S))
+    outs = [Output("c1", "velocity", "carbody", p.L_v), Output("b1", "velocity", "bogie1", p.L_v),
+            Output("c2", "velocity", "carbody", -p.L_v), Output("b2", "velocity", "bogie2", -p.L_v)]
+    outs += [Output(f"w{j}", "velocity", f"bogie{1 + j // 2}", x)
+             for j, x in enumerate((p.L_v + p.L_b, p.L_v - p.L_b, -p.L_v + p.L_b, -p.L_v - p.L_b))]
+    H = frequency_response(build_car(p), outs, F)  # per unit rail level
+    w = 2 * np.pi * F
+    rail = np.broadcast_to(np.eye(4) * (1j * w)[:, None, None], (F.size, 4, 4))  # the rails' own velocity
+    rel = np.concatenate([H[:, 0:1] - H[:, 1:2], H[:, 2:3] - H[:, 3:4], H[:, 4:] - rail], axis=1)
+    rel = rel / -(w * w)[:, None, None]  # per unit rail acceleration
+    for k, (sig_s, sig_p) in got.items():
+        ms = np.einsum("kij,kjl,kil->i", rel, stats.S[k], rel.conj()).real / stats.seconds[k]
+        assert sig_s == pytest.approx(np.sqrt(ms[:2].mean()), rel=1e-9)
+        assert sig_p == pytest.approx(np.sqrt(ms[2:].mean()), rel=1e-9)
+    assert got[("r", 21.0)][0] == pytest.approx(2 * got[("r", 20.0)][0], rel=1e-12)  # linear in the input
+
+
+def _layout(p) -> Layout:
+    return Layout(axle={}, responses=(Output("b1", "acceleration", "bogie1", p.L_v + 0.5),
+                                      Output("g1", "pitch_rate", "bogie1"),
+                                      Output("c0", "acceleration", "carbody", 0.0),
+                                      Output("c1", "acceleration", "carbody", 9.0)),
+                  response_sensors=(), L_v=p.L_v, L_b=p.L_b, length=23.0)
+
+
+def test_response_fit_recovers_secondary_friction_from_cells_of_different_amplitude():
+    """Band sums made by the class-linearised car itself at the amplitudes the start car
+    predicts (eight cells whose rail inputs differ by up to 4x, secondary friction 900 N):
+    the fit from a car 10-20 % off finds the friction and a residual near zero; the cost's
+    gradient matches central differences. Accelerations per rail acceleration do not change
+    when every mass, stiffness and damping (and so the friction) is scaled alike, so the
+    friction is checked against the carbody's mass."""
+    p_true = INTERCITY_TRAILER
+    lay = _layout(p_true)
+    start = p_true.replace(m_v=p_true.m_v * 1.1, k_s=p_true.k_s * 0.85, c_s=p_true.c_s * 1.2, k_p=p_true.k_p * 0.9)
+    stats = _input_cells(np.geomspace(1.0, 4.0, 8) * 1e-2, np.random.default_rng(5))
+    classes = amplitude_classes(start, stats, set(stats.S))
+    truth = {"friction_secondary": 900.0, "friction_primary": 10.0}
+    stats = Statistics(("u1", "u2", "u3", "u4", "b1", "g1", "c0", "c1"), stats.edges, F, 10.0,
+                       {k: _full(S, p_true, classes.added(truth, classes.sigma[classes.of(k)]), lay)
+                        for k, S in stats.S.items()}, dict(stats.seconds))
+    ext = EXTENSIONS["amplitude_dependent_suspension"]
+    bounds = {n: (getattr(p_true, n) / 2, getattr(p_true, n) * 2) for n in FIT_NAMES}
+    fit = fit_response(stats, lay, set(stats.S), start, bounds, ext_params=ext.params, make=ext.make)
+    scale = fit.parameters.m_v / p_true.m_v
+    assert fit.values["friction_secondary"] / scale == pytest.approx(900.0, rel=0.01)
+    assert fit.values["friction_primary"] / scale < 50.0
+    assert np.all(fit.nrp_train < 1e-5)
+    # the fitted car carries the damping at the reference amplitude, each cell its class's difference
+    ref = classes.added(truth, classes.reference)[0]
+    assert fit.parameters.c_s / scale == pytest.approx(p_true.c_s + ref, rel=0.01)
+    quiet, rough = min(stats.S, key=lambda k: k[1]), max(stats.S, key=lambda k: k[1])
+    assert fit.damping[quiet][0] > 0 > fit.damping[rough][0]
+
+    problem = ResponseProblem(stats, lay, set(stats.S), start, bounds, ext.params, ext.make, amplitude=classes)
+    assert len(problem.groups) == 4
+    x = problem.lo + np.random.default_rng(1).uniform(0.2, 0.8, problem.lo.size) * (problem.hi - problem.lo)
+    every, none = np.ones(x.size, bool), np.zeros(x.size, bool)
+    _, grad = problem.cost(x, every)
+    step = 1e-5 * np.maximum(1.0, np.abs(x))
+    numeric = [(problem.cost(x + h * e, none)[0] - problem.cost(x - h * e, none)[0]) / (2 * h)
+               for h, e in zip(step, np.eye(x.size))]
+    assert grad == pytest.approx(numeric, rel=1e-4, abs=1e-4 * np.max(np.abs(numeric)))
+
+
+def _full(Suu, p, added, lay):
+    """A cell's band sums (inputs and responses) of car ``p`` with damping ``added``."""
+    p = p.replace(c_s=p.c_s + added[0], c_p=p.c_p + added[1])
+    G = transfer(p, CarExtras(), SensorModel(), lay, F)
+    S = np.zeros((F.size, 8, 8), complex)
+    S[:, :4, :4], S[:, 4:, :4] = Suu, G @ Suu
+    S[:, :4, 4:], S[:, 4:, 4:] = (G @ Suu).conj().transpose(0, 2, 1), G @ Suu @ G.conj().transpose(0, 2, 1)
+    return S
+
+
+def test_friction_is_a_property_and_may_be_absent_from_the_primary_but_not_pinned_at_its_top():
+    """Every suspension has some friction: a property at any size. A primary without
+    friction is fitted at the range's low end, which is the effect absent there, not a
+    parameter standing in for something else; at the top of its range it stands in."""
+    s, ext = DiagnosisSettings(), EXTENSIONS["amplitude_dependent_suspension"]
+    assert ext.always_normal and ext.absent_at_low == FRICTION
+    h = Hypothesis(extension=ext, evidence_score=0.0, parameters={"friction_secondary": 1200.0,
+                                                                  "friction_primary": 10.0},
+                   parameters_at_bounds=(), model={}, heldout_error={}, residual=None, systematic_left=0.1,
+                   systematic_after=0.05, best_channel="bogie1_acc_z", gain=0.4, worst_change=0.0, losses=(),
+                   penalised_gain=0.38, fit=None)
+    assert kept(ext, h, s)
+    assert kept(ext, replace(h, parameters_at_bounds=("friction_primary",)), s)
+    top = replace(h, parameters={"friction_secondary": 5000.0, "friction_primary": 10.0},
+                  parameters_at_bounds=("friction_secondary", "friction_primary"))
+    assert not kept(ext, top, s)
