@@ -34,6 +34,9 @@ wrong name, written down before the first run:
     11  sensor_offset + track_flexibility                      carbody on   --few
     12  bogie_only_carbody_bending: carbody_bending hidden,
         the seed's own sensor set (axle boxes + bogie only)    carbody off  --few
+    13  suspension_friction: dry friction across the air
+        springs, outside the catalogue; its extension
+        (amplitude_dependent_suspension) is a property         carbody on   --seeds
 
 "carbody on": the seed's set (four axle boxes, bogie accelerometer and pitch gyro) plus
 three carbody floor accelerometers (front, centre, rear); "carbody off": the seed's set.
@@ -51,6 +54,11 @@ Expected answers (:func:`_cases`; any answer in neither column is a miss, counte
     bogie_only_carbody_bending    unexplained, a `none` whose     none, any catalogue name but
                                   summary says the effect is      carbody_bending
                                   not observable, carbody_bending
+    suspension_friction           none (and, reported beside it,  any catalogue name
+                                  the property
+                                  amplitude_dependent_suspension
+                                  with its friction against the
+                                  truth's)
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
@@ -164,7 +172,7 @@ class Case:
     miss (an effect not found), counted apart from wrong names."""
 
     name: str
-    group: str  # catalogue, clean, near_mimic, combined, sensor_set
+    group: str  # catalogue, clean, near_mimic, combined, sensor_set, property
     hidden: tuple[str, ...]
     carbody_sensors: bool
     right: frozenset
@@ -202,6 +210,7 @@ def _cases() -> tuple[Case, ...]:
     out.append(Case("bogie_only_carbody_bending", "sensor_set", ("carbody_bending",), False,
                     frozenset({"unexplained", NOT_OBSERVABLE, "carbody_bending"}),
                     (cat - {"carbody_bending"}) | {"none"}))
+    out.append(Case("suspension_friction", "property", ("suspension_friction",), True, frozenset({"none"}), cat))
     return tuple(out)
 
 
@@ -253,7 +262,7 @@ def exudyn_campaigns(first_seed: int, seeds: int, few: int, only: str | None = N
     for k, case in enumerate(CASES):
         if only is not None and case.name != only:
             continue
-        for j in range(from_rep, seeds if case.group in ("catalogue", "clean") else few):
+        for j in range(from_rep, seeds if case.group in ("catalogue", "clean", "property") else few):
             seed = first_seed + SEED_STRIDE * k + j
             rng = np.random.default_rng([31, seed])
             mags = [float(rng.uniform(RANGES[n][0], RANGES[n][1])) for n in case.hidden]
@@ -377,6 +386,10 @@ def _report_exudyn(results: list[dict], args) -> None:
             print(f"\n{c.name}: " + label.format(**counts) + f" (of {len(rs)}; answers: "
                   + ", ".join(r["answer"] for r in rs) + ")")
 
+    for c in CASES:
+        if c.group == "property" and c.name in by:
+            _report_property(c, by[c.name])
+
     print("\nheld-out gain of each catalogue effect's own extension where it was fitted (min / median / max):")
     for n in CATALOGUE:
         if n in by:
@@ -394,6 +407,29 @@ def _report_exudyn(results: list[dict], args) -> None:
     st, dt = [r["synth_s"] for r in done], [r["diagnose_s"] for r in done]
     print(f"\nwall time per campaign: synthesis median {np.median(st):.0f} s (max {max(st):.0f}), diagnosis median "
           f"{np.median(dt):.0f} s (max {max(dt):.0f}); {args.jobs} in parallel")
+
+
+#: a property case's extension and the parameter compared with the truth's (its detail key)
+PROPERTY_OF = {"suspension_friction": ("amplitude_dependent_suspension", "friction_secondary",
+                                       "secondary_friction_n_per_bogie")}
+
+
+def _report_property(case: Case, rs: list[dict]) -> None:
+    """A hidden effect the diagnosis models as a property: the answer (`none`, no catalogue
+    name) and whether the property was found, its size against the truth's."""
+    ext, parameter, detail = PROPERTY_OF[case.name]
+    ratios = []
+    for r in rs:
+        found = [f for f in r.get("findings") or () if f["name"] == ext]
+        truth = (r["truth_effect"] or [{}])[0].get("details", {}).get(detail)
+        if found and truth:
+            ratios.append(found[0]["parameters"][parameter] / truth)
+    within = sum(0.5 <= x <= 2.0 for x in ratios)
+    wrong = [r["answer"] for r in rs if r["verdict"] == "wrong"]
+    print(f"\n{case.name}: `none` {_rate(sum(r['verdict'] == 'right' for r in rs), len(rs))}; wrong names "
+          f"{len(wrong)}" + (f" ({', '.join(sorted(set(wrong)))})" if wrong else "")
+          + f"; the property {ext} found {_rate(len(ratios), len(rs))}, {parameter} within a factor 2 of the "
+          f"truth's {_rate(within, len(rs))}; found / truth: " + ", ".join(f"{x:.2f}" for x in sorted(ratios)))
 
 
 def main_exudyn(args) -> int:
