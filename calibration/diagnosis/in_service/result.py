@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...models.car2d import extras_to_json
+from .amplitude import FRICTION
 from .baseline import BaselineStart
 from .detectability import Detectability
 from .evidence import Evidence
@@ -53,14 +54,22 @@ class InServiceDiagnosis:
     def model_json(self) -> dict:
         """The extended model as a calibration file's keys: ``model``, ``parameters``,
         ``extras`` (:func:`~calibration.models.car2d.extras_to_json`), the bogie sensors'
-        ``sensor_model`` where a finding moved them, and ``not_in_model``: the findings on
-        the track and wheels, which a vehicle model does not carry."""
+        ``sensor_model`` where a finding moved them, ``not_in_model``: the findings on the
+        track and wheels, which a vehicle model does not carry, and ``linearised``: friction
+        found in the suspension, which the linear model carries as its equivalent damping at
+        the training runs' amplitude."""
         fit = self.extended or self.baseline
         out = {"model": "car2d", "parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras)}
         if fit.sensors != SensorModel():
             out["sensor_model"] = {"bogie_dx": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain,
                                    **({"floor": fit.sensors.floor_json()} if fit.sensors.floor else {})}
         out["not_in_model"] = [f.name for f in self.findings if f.hypothesis.kind != "response"]
+        reference = fit.values.get("amplitude_reference_m_per_s")
+        if reference is not None:  # a linear model carries friction as its damping at one amplitude
+            out["linearised"] = {"amplitude_dependent_suspension": {
+                **{n: fit.values[n] for n in FRICTION}, "reference_rms_velocity_m_per_s": reference,
+                "note": "c_s and c_p include the friction's equivalent damping at these rms relative velocities "
+                        "(the training runs'); at other amplitudes the linear model does not follow it"}}
         return out
 
     @property
