@@ -448,6 +448,10 @@ def test_the_windowed_set_adds_the_side_walls_end_strips_and_its_file_rebuilds_t
     assert zone == pytest.approx((Geometry().length - 14.0) / 2)
     fs = factor_set("windowed", side_end_zone=zone)
     assert fs == windowed_factor_set(zone) and fs.side_end_zone == zone and credible.side_end_zone == 0.0
+    from calibration.data.errors import InputError
+    with pytest.raises(InputError, match=r"in \(0, 12.25\)") as bad:  # one check, the file's key named
+        windowed_factor_set(13.0)
+    assert bad.value.key == "side_end_zone_m"
     assert set(fs.names) == set(credible.names) | {"side_end_shear"} and fs.polish_only == credible.polish_only
     assert fs.swarm_parameters[-1].name == "side_end_shear"  # swarmed, not left to the polish
     model, p = calibrated_box_model({"factor_set": "windowed", "side_end_zone_m": zone,

@@ -207,10 +207,14 @@ WINDOWED = "windowed"
 
 
 def windowed_factor_set(side_end_zone: float) -> FactorSet:
-    """The credible set and the side walls' shear over ``side_end_zone`` [m] at each end."""
+    """The credible set and the side walls' shear over ``side_end_zone`` [m] at each end;
+    InputError (a ValueError) naming a calibration file's key ``side_end_zone_m`` for a
+    length that is not a number in (0, half the carbody's length)."""
     half = Geometry().length / 2
-    if not 0 < side_end_zone < half:
-        raise ValueError(f"the side walls' end strips must be 0-{half:g} m long, got {side_end_zone!r}")
+    if isinstance(side_end_zone, bool) or not isinstance(side_end_zone, (int, float)) \
+            or not 0 < side_end_zone < half:
+        raise InputError(f"the side walls' end strips must be a length [m] in (0, {half:g}), got {side_end_zone!r}",
+                         key="side_end_zone_m")
     return FactorSet.from_pairs(WINDOWED, CREDIBLE_FACTORS + ((side_end_shear(side_end_zone), SIDE_END_SHEAR_RANGE),)
                                 + POLISH_JOINT_FACTORS, len(POLISH_JOINT_FACTORS))
 
@@ -333,12 +337,10 @@ def calibrated_box_model(calibration: dict):
     if (zone is None) != (name != WINDOWED):
         raise InputError(f"'side_end_zone_m' goes with factor_set {WINDOWED!r} and only with it (factor_set "
                          f"{name!r}, side_end_zone_m {zone!r})", key="side_end_zone_m")
-    half = Geometry().length / 2
-    if zone is not None and (isinstance(zone, bool) or not isinstance(zone, (int, float)) or not 0 < zone < half):
-        raise InputError(f"'side_end_zone_m' must be a length [m] in (0, {half:g}), got {zone!r}",
-                         key="side_end_zone_m")
     try:
         factors = factor_set(name, side_end_zone=zone)
+    except InputError:  # the end strips' length, named by its own key
+        raise
     except ValueError as e:
         raise InputError(str(e), key="factor_set") from None
     params = calibration.get("parameters", {})
