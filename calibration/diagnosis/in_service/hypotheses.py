@@ -129,6 +129,12 @@ def heldout_losses(names, before, after, best: int, max_loss: float) -> list[str
             if b > 0 and a - b > max_loss * b and a - b > max_loss * removed]
 
 
+def response_model(fit: ResponseFit) -> dict:
+    """A response fit's model as a hypothesis records it."""
+    return {"parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras),
+            "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain, "floor": fit.sensors.floor_json()}}
+
+
 def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, ev: Evidence,
                    score: float, *, added_to: Hypothesis | None = None) -> Hypothesis:
     """Fit extension ``ext`` on the training runs and judge it on held-out data against the
@@ -150,9 +156,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         after = response_errors(data, fit, ev.masks)
         names = data.layout.response_names
         params = fit.values
-        model = {"parameters": fit.parameters.as_dict(), "extras": extras_to_json(fit.extras),
-                 "sensors": {"dx_m": fit.sensors.dx, "gyro_gain": fit.sensors.gyro_gain,
-                             "floor": fit.sensors.floor_json()}}
+        model = response_model(fit)
         at = [n for n in fit.at_bounds if n in params]
         left, _ = channel_evidence(data, fit, ev.masks)
         was = ev.channels if added_to is None else channel_evidence(data, prev, ev.masks)[0]

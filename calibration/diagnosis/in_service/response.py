@@ -22,7 +22,8 @@ import scipy.optimize
 
 from ...models.car2d import CarExtras, Output, build_car, dynamic_stiffness, output_rows
 from ...models.parameters import CarParameters
-from .amplitude import FRICTION, AmplitudeClasses, amplitude_classes
+from .amplitude import (CONSISTENT, FRICTION, RELINEARISE, AmplitudeClasses, amplitude_classes, halfway,
+                        relinearised)
 from .records import Layout, Statistics
 
 #: baseline parameters the response fit adjusts (geometry is known; m_w does not enter a
@@ -382,7 +383,8 @@ def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys
 def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict, *,
                  ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6,
                  known: Mapping[str, float] | None = None, rng: np.random.Generator | None = None,
-                 per_run: bool = False, heldout_keys=(), amplitude: AmplitudeClasses | None = None) -> ResponseFit:
+                 per_run: bool = False, heldout_keys=(), amplitude: AmplitudeClasses | None = None,
+                 relinearise: bool = False) -> ResponseFit:
     """Fit the baseline parameters in ``bounds`` ({name: (low, high)}) and the extension
     parameters ``ext_params`` (``make(values) -> (CarExtras, SensorModel)``) to the training
     statistics. Without an extension: one fit from ``base``. With one: a
@@ -395,7 +397,8 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
     (:func:`_cross_fitted_loads`); the fitted car carries the training runs' mean load.
     ``amplitude``: the cells' amplitude classes, for friction among ``ext_params``; the
     fitted car carries the damping at the training cells' amplitude, each cell (training and
-    held out) its class's difference from it."""
+    held out) its class's difference from it; with ``relinearise`` the classes' amplitudes
+    are made consistent with the friction fitted (:mod:`.amplitude`)."""
     rng = np.random.default_rng(0) if rng is None else rng
     known = dict(known or {})
     if amplitude is None and any(r.name in FRICTION for r in ext_params):
@@ -417,6 +420,15 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
                 best = (x, cost)
         x_base = best[0]
     x, _ = pr.solve(x_base, np.ones(n, bool))
+    for _ in range(RELINEARISE if pr.amplitude is not None and relinearise else 0):
+        p, _, _, vals = pr.unpack(x)
+        amplitude = halfway(pr.amplitude, relinearised(pr.amplitude, p, vals, stats, train_keys), stats, train_keys)
+        if np.allclose(amplitude.sigma, pr.amplitude.sigma, rtol=CONSISTENT, atol=0.0):
+            break
+        count = pr.count
+        pr = ResponseProblem(stats, lay, train_keys, base, bounds, ext_params, make, per_run, amplitude)
+        pr.count = count
+        x, _ = pr.solve(x, np.ones(n, bool))
     p, extras, sensors, vals = pr.unpack(x)
     nrp = pr.residual_power(x).sum(axis=0) * pr.norm
     span = pr.hi - pr.lo

@@ -30,8 +30,9 @@ import numpy as np
 from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors
 from .extensions import EXTENSIONS, Extension, combined
 from .confidence import Confidence, held_out_confidence, response_confidence
-from .hypotheses import Hypothesis, fit_hypothesis, reductions, systematic_left
-from .response import ResponseFit
+from .amplitude import FRICTION, viscous
+from .hypotheses import Hypothesis, fit_hypothesis, reductions, response_model, systematic_left
+from .response import ResponseFit, fit_response
 
 #: response causes found one after the other, at most (a third is rare enough on a campaign
 #: of a few journeys that its held-out gain would not be trusted); properties found on the
@@ -225,4 +226,23 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
         findings.append(_finding(e, h, own, _confidence(data, ev, current.fit, h, e, [x for _, x in ok])))
         used.append(e.name)
         current = h
-    return Selection(tuple(findings), current.fit, current)
+    return _consistent(data, Selection(tuple(findings), current.fit, current))
+
+
+def _consistent(data: DiagnosisData, sel: Selection) -> Selection:
+    """``sel`` with the vehicle's model refitted with its amplitude classes consistent with
+    the friction found (:mod:`.amplitude`): the sizes reported and the model handed on. The
+    decision stands on the fits it was made with; the refit moves a friction's size, not
+    whether the data asks for it."""
+    h = sel.vehicle_hypothesis
+    if h is None or not any(r.name in FRICTION for r in h.extension.params):
+        return sel
+    ext, fit = h.extension, h.fit
+    known = {r.name: fit.values[r.name] for r in ext.params}
+    again = fit_response(data.stats, data.layout, data.keys(data.train), viscous(fit.parameters, fit.values),
+                         data.bounds, ext_params=ext.params, make=ext.make, known=known, per_run=ext.per_run,
+                         heldout_keys=data.keys(data.test), relinearise=True)
+    h = replace(h, fit=again, parameters=again.values, model=response_model(again))
+    findings = tuple(replace(f, parameters={n: again.values.get(n, v) for n, v in f.parameters.items()})
+                     if f.hypothesis.kind == "response" else f for f in sel.findings)
+    return Selection(findings, again, h)
