@@ -166,3 +166,24 @@ def test_friction_is_a_property_and_may_be_absent_from_the_primary_but_not_pinne
     top = replace(h, parameters={"friction_secondary": 5000.0, "friction_primary": 10.0},
                   parameters_at_bounds=("friction_secondary", "friction_primary"))
     assert not kept(ext, top, s)
+
+
+def test_a_model_with_friction_says_at_which_amplitude_its_damping_holds():
+    """The extended model handed on is linear: its c_s and c_p carry the friction's damping
+    at the training runs' amplitude, and the file says so with the friction."""
+    from calibration.diagnosis.in_service.response import ResponseFit
+    from calibration.diagnosis.in_service.result import InServiceDiagnosis
+
+    values = {"friction_secondary": 800.0, "friction_primary": 10.0,
+              "amplitude_reference_m_per_s": {"secondary": 0.012, "primary": 0.02}}
+    p = INTERCITY_TRAILER.replace(c_s=INTERCITY_TRAILER.c_s + GAUSSIAN * 800.0 / 0.012)
+    fit = ResponseFit(p, CarExtras(), SensorModel(), values, np.zeros(2), (), 1)
+    plain = ResponseFit(INTERCITY_TRAILER, CarExtras(), SensorModel(), {}, np.zeros(2), (), 1)
+    blank = dict.fromkeys(("campaign", "cause", "summary", "evidence", "hypotheses", "best", "start", "bounds",
+                           "training_runs", "heldout_runs", "settings", "layout", "statistics", "detectability"))
+    out = InServiceDiagnosis(**blank, baseline=plain, extended=fit).model_json()
+    assert out["parameters"]["c_s"] == pytest.approx(p.c_s)
+    assert viscous(p, values).c_s == pytest.approx(INTERCITY_TRAILER.c_s)
+    lin = out["linearised"]["amplitude_dependent_suspension"]
+    assert lin["friction_secondary"] == 800.0 and lin["reference_rms_velocity_m_per_s"]["secondary"] == 0.012
+    assert "linearised" not in InServiceDiagnosis(**blank, baseline=plain).model_json()
