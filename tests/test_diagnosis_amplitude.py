@@ -187,3 +187,38 @@ def test_a_model_with_friction_says_at_which_amplitude_its_damping_holds():
     lin = out["linearised"]["amplitude_dependent_suspension"]
     assert lin["friction_secondary"] == 800.0 and lin["reference_rms_velocity_m_per_s"]["secondary"] == 0.012
     assert "linearised" not in InServiceDiagnosis(**blank, baseline=plain).model_json()
+
+
+def test_a_held_out_journeys_load_is_fitted_with_the_damping_its_amplitude_adds():
+    """Journey loads and friction together, on band sums made by the linearised car: two
+    training runs (loads 0 and +10 %) and a held-out run at load 0, each in four speed
+    cells of different amplitude. The held-out run's load, fitted on half its cells and
+    judged on the other half, must come out as its own (against the training mean), not
+    absorb the damping its amplitude adds."""
+    from calibration.diagnosis.in_service.extensions import combined
+    from calibration.diagnosis.in_service.response import loaded
+
+    p_true = INTERCITY_TRAILER
+    lay = _layout(p_true)
+    rng = np.random.default_rng(8)
+    runs = {"r1": 0.0, "r2": 0.10, "r3": 0.0}
+    u = Statistics(("u1", "u2", "u3", "u4"), np.r_[F, 26.0], F, 10.0)
+    for run in runs:
+        for i, a in enumerate((1.0, 1.6, 2.4, 3.5)):
+            X = rng.normal(size=(F.size, 4, 6)) + 1j * rng.normal(size=(F.size, 4, 6))
+            u.S[(run, 20.0 + i)], u.seconds[(run, 20.0 + i)] = (a * 1e-2) ** 2 * X @ X.conj().transpose(0, 2, 1), 50.0
+    train = {k for k in u.S if k[0] != "r3"}
+    held = set(u.S) - train
+    truth = {"friction_secondary": 300.0, "friction_primary": 10.0}
+    classes = amplitude_classes(p_true, u, train, held)
+    S = {}
+    for k, Suu in u.S.items():
+        p, _ = loaded(p_true, CarExtras(), runs[k[0]])
+        S[k] = _full(Suu, p, classes.added(truth, classes.sigma[classes.of(k)]), lay)
+    stats = Statistics(("u1", "u2", "u3", "u4", "b1", "g1", "c0", "c1"), u.edges, F, 10.0, S, dict(u.seconds))
+    ext = combined(EXTENSIONS["journey_load"], EXTENSIONS["amplitude_dependent_suspension"])
+    bounds = {n: (getattr(p_true, n) / 2, getattr(p_true, n) * 2) for n in FIT_NAMES}
+    fit = fit_response(stats, lay, train, p_true, bounds, ext_params=ext.params, make=ext.make, per_run=True,
+                       heldout_keys=held)
+    assert fit.values["journey_loads"]["r3"] == pytest.approx(1 / 1.05 - 1, abs=0.005)
+    assert fit.values["journey_loads"]["r2"] == pytest.approx(1.10 / 1.05 - 1, abs=0.005)

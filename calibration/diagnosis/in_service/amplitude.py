@@ -9,11 +9,12 @@ deviation sigma is, in the mean-square sense, a viscous damper of
 (statistical linearisation: c_eq = E[F sign(v) v] / E[v^2]). Friction thus damps a quiet
 ride more than a rough one: a cell's damping depends on how hard the track drives it.
 sigma of each suspension element comes from the baseline car driven by the cell's
-measured rail input (no response data), so held-out cells get theirs without fitting.
+measured rail input (no response data), so held-out cells are placed without fitting.
 
 The training cells are sorted into :data:`CLASSES` classes of secondary amplitude (equal
-counts); each class is one car, its sigma the class's mean square over its seconds, so a
-fit costs :data:`CLASSES` frequency responses per evaluation, not one per cell.
+counts); each class is one car, its sigma the class's rms over its cells' seconds, so a
+fit costs :data:`CLASSES` frequency responses per evaluation, not one per cell. A held-out
+cell takes the class its sigma falls in, and that class's sigma.
 
 The baseline's sigma is a first guess: friction damps a quiet cell more, so the truth's
 quiet cells move less than the baseline (one damping for all) predicts, and the amplitude
@@ -160,16 +161,17 @@ def halfway(a: AmplitudeClasses, b: AmplitudeClasses, stats: Statistics, train_k
 
 
 def relinearised(classes: AmplitudeClasses, p: CarParameters, values: Mapping, stats: Statistics, train_keys,
-                 iterations: int = 50, rtol: float = 1e-6) -> AmplitudeClasses:
+                 iterations: int = 50, rtol: float = 1e-6, extras: CarExtras = CarExtras()) -> AmplitudeClasses:
     """The classes (same members) with each class's sigma made consistent with the damping
-    the friction of ``values`` adds at it, on car ``p`` (its viscous damping): each class's
-    car is p with that damping, its cells' sigmas are that car's, iterated to a fixed point."""
+    the friction of ``values`` adds at it, on car ``p`` (its viscous damping) with
+    ``extras``: each class's car is p with that damping, its cells' sigmas are that car's,
+    iterated to a fixed point."""
     train = stats.ordered(train_keys)
     for _ in range(iterations):
         cells = {}
         for c, sig in enumerate(classes.sigma):
             dc_s, dc_p = classes.added(values, sig)
-            T = _velocity_transfer(p.replace(c_s=p.c_s + dc_s, c_p=p.c_p + dc_p), CarExtras(), stats.centres)
+            T = _velocity_transfer(p.replace(c_s=p.c_s + dc_s, c_p=p.c_p + dc_p), extras, stats.centres)
             cells.update({k: _rms(T, stats, k) for k, m in classes.member.items() if m == c})
         new = _classes(classes.member, cells, stats, train)
         done = np.allclose(new.sigma, classes.sigma, rtol=rtol, atol=0.0)

@@ -19,6 +19,7 @@ import numpy as np
 from ...models.car2d import CarExtras, extras_to_json
 from .evidence import (DiagnosisData, Evidence, channel_evidence, response_errors, systematic,
                        within_accuracy)
+from .amplitude import viscous
 from .extensions import Extension
 from .response import ResponseFit, fit_response
 from .settings import DiagnosisSettings
@@ -148,7 +149,9 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
     n_params = ext.n_params
     if ext.kind == "response":
         prev = base_fit if added_to is None else added_to.fit
-        fit = fit_response(stats, data.layout, data.keys(data.train), prev.parameters, data.bounds,
+        # a fit with friction folds its damping at one amplitude into c_s and c_p: start from the viscous part
+        fit = fit_response(stats, data.layout, data.keys(data.train), viscous(prev.parameters, prev.values),
+                           data.bounds,
                            ext_params=ext.params, make=ext.make, starts=s.starts,
                            known=None if added_to is None else prev.values, per_run=ext.per_run,
                            heldout_keys=data.keys(data.test))

@@ -220,6 +220,8 @@ class ResponseProblem:
         runs = sorted({k[0] for k in train_keys})
         self.runs = runs if per_run else []
         self.amplitude = amplitude if any(r.name in FRICTION for r in ext_params) else None
+        if self.amplitude is None and any(r.name in FRICTION for r in ext_params):
+            raise ValueError("friction parameters need the cells' amplitude classes (amplitude=...)")
         cells: dict = {}
         for k in stats.ordered(train_keys):
             cells.setdefault((k[0] if self.runs else "", self.amplitude.of(k) if self.amplitude else -1), []).append(k)
@@ -355,7 +357,8 @@ class ResponseProblem:
 def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys) -> dict:
     """Held-out runs' loads, each half of a run's speed bins predicted at the load fitted
     on the other half (so that no cell is judged at a load fitted to it); a run with one
-    speed bin is judged at the mean load, 0."""
+    speed bin is judged at the mean load, 0. Each cell is predicted with the damping its
+    amplitude adds (``model.damping``), as it is judged."""
     by_run: dict = {}
     for k in sorted(keys):
         by_run.setdefault(k[0], []).append(k)
@@ -369,10 +372,14 @@ def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys
         for fit_on, judge in (halves, halves[::-1]):
             S, _ = stats.total(lambda k, s=set(fit_on): k in s)
             norm = 1.0 / np.maximum(channel_power(S, 4, n_out).sum(axis=0), 1e-300)
+            by_damping: dict = {}
+            for k in fit_on:
+                by_damping.setdefault(tuple(model.damping.get(k, (0.0, 0.0))), []).append(k)
+            parts = [(d, stats.total(lambda k, s=set(ks): k in s)[0]) for d, ks in sorted(by_damping.items())]
 
             def cost(load):
-                return float((residual_power(model.transfer(lay, stats.centres, (load, (0.0, 0.0))), S, 4, n_out)
-                              * norm).sum())
+                return float(sum((residual_power(model.transfer(lay, stats.centres, (load, d)), Sd, 4, n_out)
+                                  * norm).sum() for d, Sd in parts))
 
             sol = scipy.optimize.minimize_scalar(cost, bounds=(-LOAD_RANGE, LOAD_RANGE), method="bounded",
                                                  options={"xatol": 1e-4})
@@ -421,8 +428,9 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
         x_base = best[0]
     x, _ = pr.solve(x_base, np.ones(n, bool))
     for _ in range(RELINEARISE if pr.amplitude is not None and relinearise else 0):
-        p, _, _, vals = pr.unpack(x)
-        amplitude = halfway(pr.amplitude, relinearised(pr.amplitude, p, vals, stats, train_keys), stats, train_keys)
+        p, extras, _, vals = pr.unpack(x)
+        amplitude = halfway(pr.amplitude, relinearised(pr.amplitude, p, vals, stats, train_keys, extras=extras),
+                            stats, train_keys)
         if np.allclose(amplitude.sigma, pr.amplitude.sigma, rtol=CONSISTENT, atol=0.0):
             break
         count = pr.count
@@ -442,7 +450,8 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
         values["amplitude_reference_m_per_s"] = {"secondary": a.reference[0], "primary": a.reference[1]}
     fit = ResponseFit(p, extras, sensors, values, nrp, at, pr.count)
     if pr.amplitude is not None:
-        fit = replace(fit, damping={k: pr.amplitude.relative(vals, k) for k in set(train_keys) | set(heldout_keys)})
+        fit = replace(fit, damping={k: pr.amplitude.relative(vals, k)
+                                    for k in stats.ordered(set(train_keys) | set(heldout_keys))})
     if not per_run:
         return fit
     # the car at the training runs' mean load; each run's load against it

@@ -242,7 +242,8 @@ def _consistent(data: DiagnosisData, sel: Selection) -> Selection:
     again = fit_response(data.stats, data.layout, data.keys(data.train), viscous(fit.parameters, fit.values),
                          data.bounds, ext_params=ext.params, make=ext.make, known=known, per_run=ext.per_run,
                          heldout_keys=data.keys(data.test), relinearise=True)
-    h = replace(h, fit=again, parameters=again.values, model=response_model(again))
+    h = replace(h, fit=again, parameters=again.values, model=response_model(again),
+                parameters_at_bounds=tuple(n for n in again.at_bounds if n in again.values))
     findings = tuple(replace(f, parameters={n: again.values.get(n, v) for n, v in f.parameters.items()})
                      if f.hypothesis.kind == "response" else f for f in sel.findings)
     return Selection(findings, again, h)
