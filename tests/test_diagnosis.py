@@ -38,6 +38,8 @@ from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, parse
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
 
+from gradient_checks import assert_gradient_is_exact
+
 P = INTERCITY_TRAILER
 
 
@@ -464,10 +466,4 @@ def test_response_fit_recovers_an_exact_model_with_a_load_per_run():
     assert np.all(fit.nrp_train < 1e-5)
     # the cost's gradient against central differences, at a point off the optimum
     problem = ResponseProblem(stats, lay, set(stats.S), start, bounds, ext.params, ext.make, per_run=True)
-    x = problem.lo + np.random.default_rng(1).uniform(0.2, 0.8, problem.lo.size) * (problem.hi - problem.lo)
-    every, none = np.ones(x.size, bool), np.zeros(x.size, bool)
-    _, grad = problem.cost(x, every)
-    step = 1e-5 * np.maximum(1.0, np.abs(x))
-    numeric = [(problem.cost(x + h * e, none)[0] - problem.cost(x - h * e, none)[0]) / (2 * h)
-               for h, e in zip(step, np.eye(x.size))]
-    assert grad == pytest.approx(numeric, rel=1e-4, abs=1e-4 * np.max(np.abs(numeric)))
+    assert_gradient_is_exact(problem)

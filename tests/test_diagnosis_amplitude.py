@@ -24,6 +24,8 @@ from calibration.models.assembly import elongation_rows
 from calibration.models.car2d import CarExtras, Output, build_car, frequency_response
 from calibration.models.vehicles import INTERCITY_TRAILER
 
+from gradient_checks import assert_gradient_is_exact
+
 F = np.geomspace(0.5, 25.0, 90)
 
 
@@ -131,13 +133,7 @@ def test_response_fit_recovers_secondary_friction_from_cells_of_different_amplit
 
     problem = ResponseProblem(stats, lay, set(stats.S), start, bounds, ext.params, ext.make, amplitude=classes)
     assert len(problem.groups) == 4
-    x = problem.lo + np.random.default_rng(1).uniform(0.2, 0.8, problem.lo.size) * (problem.hi - problem.lo)
-    every, none = np.ones(x.size, bool), np.zeros(x.size, bool)
-    _, grad = problem.cost(x, every)
-    step = 1e-5 * np.maximum(1.0, np.abs(x))
-    numeric = [(problem.cost(x + h * e, none)[0] - problem.cost(x - h * e, none)[0]) / (2 * h)
-               for h, e in zip(step, np.eye(x.size))]
-    assert grad == pytest.approx(numeric, rel=1e-4, abs=1e-4 * np.max(np.abs(numeric)))
+    assert_gradient_is_exact(problem)
 
 
 def _full(Suu, p, added, lay):
@@ -222,3 +218,8 @@ def test_a_held_out_journeys_load_is_fitted_with_the_damping_its_amplitude_adds(
                        heldout_keys=held)
     assert fit.values["journey_loads"]["r3"] == pytest.approx(1 / 1.05 - 1, abs=0.005)
     assert fit.values["journey_loads"]["r2"] == pytest.approx(1.10 / 1.05 - 1, abs=0.005)
+    # the exact gradient holds with a load per run and a damping per amplitude class (8 groups)
+    problem = ResponseProblem(stats, lay, train, p_true, bounds, ext.params, ext.make, per_run=True,
+                              amplitude=classes)
+    assert len(problem.groups) > 4
+    assert_gradient_is_exact(problem)
