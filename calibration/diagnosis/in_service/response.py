@@ -483,7 +483,7 @@ def response_nrp(stats: Statistics, lay: Layout, keys, fit: ResponseFit, by_band
 
 def residuals_by_cell(stats: Statistics, lay: Layout, keys, fit: ResponseFit) -> dict:
     """Per-band residual power (n_band, n_response) of each statistics cell in ``keys``,
-    from one evaluation of the model's transfer per load."""
+    from one evaluation of the model's transfer per cell state (load and added damping)."""
     out = {}
     for state, ks in fit.groups(keys).items():
         G = fit.transfer(lay, stats.centres, state)
