@@ -46,7 +46,7 @@ GAUSSIAN = float(np.sqrt(2.0 / np.pi))
 #: amplitude classes of the training cells
 CLASSES = 4
 #: refits at most with the classes' sigmas made consistent with the fitted friction, and
-#: the relative change of the sigmas under which they are
+#: the relative change of the sigmas under which they count as consistent
 RELINEARISE = 10
 CONSISTENT = 1e-3
 _SECONDARY = ("secondary1", "secondary2")
