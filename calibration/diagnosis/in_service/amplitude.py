@@ -86,6 +86,13 @@ def _rms(T: dict, stats: Statistics, k) -> tuple[float, float]:
     return sig[0], sig[1]
 
 
+def friction_damping(values: Mapping, sigma) -> tuple[float, float]:
+    """(dc_s, dc_p) [N s/m]: the viscous damping equivalent to the friction forces of
+    ``values`` (:data:`FRICTION`) at rms relative velocities ``sigma`` = (sigma_s, sigma_p)."""
+    dc_s, dc_p = (GAUSSIAN * float(values.get(n, 0.0)) / s for n, s in zip(FRICTION, sigma))
+    return dc_s, dc_p
+
+
 @dataclass(frozen=True)
 class AmplitudeClasses:
     """The training cells' classes of secondary amplitude and each class's sigmas [m/s].
@@ -109,7 +116,7 @@ class AmplitudeClasses:
 
     def added(self, values: Mapping, sigma) -> tuple[float, float]:
         """(dc_s, dc_p) [N s/m]: the damping the friction of ``values`` adds at ``sigma``."""
-        return tuple(GAUSSIAN * float(values.get(n, 0.0)) / s for n, s in zip(FRICTION, sigma))
+        return friction_damping(values, sigma)
 
     def relative(self, values: Mapping, cell) -> tuple[float, float]:
         """(dc_s, dc_p) of ``cell``'s class against the reference amplitude's [N s/m]."""
@@ -118,7 +125,8 @@ class AmplitudeClasses:
         return a[0] - b[0], a[1] - b[1]
 
 
-def _mean_square(cells: Mapping, seconds: Mapping, keys) -> tuple[float, float]:
+def _seconds_rms(cells: Mapping, seconds: Mapping, keys) -> tuple[float, float]:
+    """The rms over ``keys`` of their cells' sigmas, weighted by their seconds."""
     sec = np.array([seconds[k] for k in keys])
     s = np.array([cells[k] for k in keys])
     return tuple(float(v) for v in np.sqrt((s ** 2 * sec[:, None]).sum(axis=0) / sec.sum()))
@@ -126,8 +134,8 @@ def _mean_square(cells: Mapping, seconds: Mapping, keys) -> tuple[float, float]:
 
 def _classes(member: Mapping, cells: Mapping, stats: Statistics, train) -> AmplitudeClasses:
     n = max(member[k] for k in train) + 1
-    sigma = np.array([_mean_square(cells, stats.seconds, [k for k in train if member[k] == c]) for c in range(n)])
-    return AmplitudeClasses(dict(member), sigma, _mean_square(cells, stats.seconds, train), dict(cells))
+    sigma = np.array([_seconds_rms(cells, stats.seconds, [k for k in train if member[k] == c]) for c in range(n)])
+    return AmplitudeClasses(dict(member), sigma, _seconds_rms(cells, stats.seconds, train), dict(cells))
 
 
 def amplitude_classes(p: CarParameters, stats: Statistics, train_keys, heldout_keys=()) -> AmplitudeClasses:
@@ -150,7 +158,7 @@ def viscous(p: CarParameters, values: Mapping) -> CarParameters:
     ref = values.get("amplitude_reference_m_per_s")
     if ref is None:
         return p
-    dc_s, dc_p = (GAUSSIAN * float(values.get(n, 0.0)) / ref[k] for n, k in zip(FRICTION, ("secondary", "primary")))
+    dc_s, dc_p = friction_damping(values, (ref["secondary"], ref["primary"]))
     return p.replace(c_s=p.c_s - dc_s, c_p=p.c_p - dc_p)
 
 
