@@ -166,8 +166,12 @@ def elongation_rows(asm: Assembly, element: str) -> tuple[np.ndarray, np.ndarray
     e = next((e for e in asm.elements if e.name == element), None)
     if e is None:
         raise KeyError(f"no spring-damper {element!r}; have {', '.join(x.name for x in asm.elements)}")
-    g_top, h_top = _point_rows(asm.bodies, asm.dofs, e.top, asm.inputs)
-    g_bot, h_bot = _point_rows(asm.bodies, asm.dofs, e.bottom, asm.inputs)
+    return _elongation(asm.bodies, asm.dofs, e, asm.inputs)
+
+
+def _elongation(bodies, dofs, e: SpringDamper, inputs) -> tuple[np.ndarray, np.ndarray]:
+    g_top, h_top = _point_rows(bodies, dofs, e.top, inputs)
+    g_bot, h_bot = _point_rows(bodies, dofs, e.bottom, inputs)
     return g_top - g_bot, h_top - h_bot
 
 
@@ -196,9 +200,7 @@ def assemble(bodies: list[Body], elements: list[SpringDamper], inputs: list[str]
     g = np.zeros((len(elements), n))  # element elongations = g @ q + h @ u (compression positive down on top)
     h = np.zeros((len(elements), m))
     for r, e in enumerate(elements):
-        g_top, h_top = _point_rows(bodies, dofs, e.top, inputs)
-        g_bot, h_bot = _point_rows(bodies, dofs, e.bottom, inputs)
-        g[r], h[r] = g_top - g_bot, h_top - h_bot
+        g[r], h[r] = _elongation(bodies, dofs, e, inputs)
     gk = g.T * np.array([e.stiffness for e in elements], float)
     gc = g.T * np.array([e.damping for e in elements], float)
     K += gk @ g

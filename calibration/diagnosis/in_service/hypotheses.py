@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...models.car2d import CarExtras, extras_to_json
+from .amplitude import viscous
 from .evidence import (DiagnosisData, Evidence, channel_evidence, response_errors, systematic,
                        within_accuracy)
-from .amplitude import viscous
 from .extensions import Extension
 from .response import ResponseFit, fit_response
 from .settings import DiagnosisSettings
