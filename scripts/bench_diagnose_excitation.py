@@ -5,7 +5,9 @@ For each case: ``synth excitation`` (the truth simulator, default settings: 2 ru
 300 s) with ``underfloor_equipment`` (mass ratio drawn uniformly in 0.01-0.05),
 ``local_panel_softening`` (divisor drawn uniformly in 3-10), no effect, or an effect
 outside the catalogue, ``sensor_bracket`` (one accelerometer on a resilient bracket,
-natural frequency drawn uniformly in 10-28 Hz; it must come out ``unexplained``), then
+natural frequency drawn uniformly in 10-28 Hz; it must come out ``unexplained``), or
+``force_calibration`` (the force sensor off by 3-10 %, either way: drawn after the others,
+so that adding it left their seeds and magnitudes as they were), then
 :func:`calibration.diagnosis.excitation.diagnose_excitation` against the effect-free box
 model. Seeds run from ``--start`` (2000) upwards, one per campaign; magnitudes come from
 ``numpy.random.default_rng(start)``. Prints one line per campaign, then the confusion
@@ -41,9 +43,11 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-EFFECT_NAMES = ("underfloor_equipment", "local_panel_softening")
+EFFECT_NAMES = ("underfloor_equipment", "local_panel_softening", "force_calibration")
 OUTSIDE = "sensor_bracket"  # outside the catalogue: must be `unexplained`
 CAUSES = EFFECT_NAMES + ("none", "unexplained")
+#: the force sensor's error drawn in these bounds (relative), either sign
+FORCE_ERROR = (0.03, 0.10)
 
 _MODEL = {}  # per worker process: the assembled box model, built once by _init
 
@@ -73,7 +77,7 @@ def _case(case: dict) -> dict:
         t2 = time.perf_counter()
     eff = truth["effect"] or {}
     hidden = {k: eff[k] for k in ("panel", "position_m", "mounting_frequency_hz", "equipment_mass_kg", "sensor",
-                                  "frequency_hz") if k in eff}
+                                  "force_gain", "frequency_hz") if k in eff}
     ext = result.extension
     return {**case, "cause": result.cause, "hidden": hidden,
             "found": dict(ext.parameters) if ext else None,
@@ -102,7 +106,7 @@ def main() -> int:
 
     rng = np.random.default_rng(args.start)
     cases, seed = [], args.start
-    for name in EFFECT_NAMES:
+    for name in EFFECT_NAMES[:2]:
         lo, hi = EFFECTS[name].magnitude_range
         for mag in rng.uniform(lo, hi, args.seeds):
             cases.append({"effect": name, "magnitude": float(mag), "seed": seed})
@@ -112,6 +116,9 @@ def main() -> int:
         seed += 1
     for mag in rng.uniform(*UNCATALOGUED[OUTSIDE].magnitude_range, args.seeds):  # drawn last: earlier seeds unchanged
         cases.append({"effect": OUTSIDE, "magnitude": float(mag), "seed": seed})
+        seed += 1
+    for err, sign in zip(rng.uniform(*FORCE_ERROR, args.seeds), rng.choice([-1.0, 1.0], args.seeds)):
+        cases.append({"effect": "force_calibration", "magnitude": float(1 + sign * err), "seed": seed})
         seed += 1
     if args.only:
         cases = [c for c in cases if (c["effect"] or "none") == args.only]

@@ -2,10 +2,11 @@
 campaign table, including the series once set aside after a failure (a seed is never
 retired for failing: it stays a case, and the rate counts it).
 
-Series 5201-5206, 5301-5306 and 5311-5316, each: underfloor equipment at the low and high
+Series 5201-5208, 5301-5308 and 5311-5318, each: underfloor equipment at the low and high
 end of its range (mass ratio 0.01, 0.05), local panel softening at both ends (divisor 3,
-10), effect-free, and a sensor on a resilient bracket (21 Hz; outside the catalogue, so
-the right answer is `unexplained`). The coarse box model and the lighter settings of the
+10), effect-free, a sensor on a resilient bracket (21 Hz; outside the catalogue, so the
+right answer is `unexplained`), and the force sensor reading 0.96 and 1.10 times the
+applied force (cases 7 and 8, added with the extension ``force_calibration``). The coarse box model and the lighter settings of the
 test file (``FAST``), one BLAS thread per worker. Prints one line per campaign and the
 right-answer rate with its 95 % interval (Wilson score), overall and per effect.
 
@@ -29,7 +30,8 @@ from pathlib import Path  # noqa: E402
 #: position in a series -> (case, effect, magnitude), as in the test file's table
 LAYOUT = ((1, "equipment_low", "underfloor_equipment", 0.01), (2, "equipment_high", "underfloor_equipment", 0.05),
           (3, "softening_low", "local_panel_softening", 3.0), (4, "softening_high", "local_panel_softening", 10.0),
-          (5, "effect_free", None, None), (6, "outside_catalogue", "sensor_bracket", 21.0))
+          (5, "effect_free", None, None), (6, "outside_catalogue", "sensor_bracket", 21.0),
+          (7, "force_low", "force_calibration", 0.96), (8, "force_high", "force_calibration", 1.10))
 COARSE_BOX_ORDERS = -4  # tests/conftest.py
 _MODEL = {}
 
@@ -73,6 +75,7 @@ def _case(case: dict) -> dict:
     eff = truth["effect"] or {}
     return {**case, "cause": result.cause, "expected": expected, "right": result.cause == expected,
             "gain": result.extension.gain if result.extension else None, "panel": eff.get("panel"),
+            "found": dict(result.extension.parameters) if result.extension else None,
             "hypotheses": {h.name: round(h.gain, 3) for h in result.hypotheses},
             "baseline_heldout_error": result.evidence.heldout_error_mean, "wall_s": wall}
 
@@ -90,7 +93,7 @@ def main() -> int:
     with multiprocessing.get_context("spawn").Pool(args.jobs, initializer=_init) as pool:
         for r in pool.imap_unordered(_case, cases):
             rows.append(r)
-            gain = "" if r["gain"] is None else f", held-out error -{r['gain']:.0%}"
+            gain = "" if r["gain"] is None else f", held-out error -{r['gain']:.0%}, found {r['found']}"
             print(f"seed {r['seed']} {r['case']}{'' if r['panel'] is None else ' (' + r['panel'] + ')'}: "
                   f"{r['cause']} ({'right' if r['right'] else 'WRONG, expected ' + r['expected']}{gain}; "
                   f"hypotheses {r['hypotheses']}; baseline error {r['baseline_heldout_error']:.2f}; "

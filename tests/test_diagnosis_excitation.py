@@ -21,6 +21,7 @@ from calibration.diagnosis.excitation import EXTENSIONS, ExcitationDiagnosisSett
 from calibration.diagnosis.excitation.basis import Operators, ReducedFRFModel, Stiffness
 from calibration.diagnosis.excitation.decision import misfit_alarms
 from calibration.diagnosis.excitation.evidence import UnpairedMode
+from calibration.diagnosis.excitation.family import Family, Layout, Slots
 from calibration.diagnosis.excitation.frf import equipment_accelerance, modal_accelerance
 from calibration.diagnosis.excitation.softening import panel_split_model
 from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, effect_spec
@@ -143,6 +144,41 @@ def test_reduced_model_reproduces_the_truths_accelerance(model, ops):
     Ht = truth.frf(f)
     rel = np.abs(H - Ht) / np.sqrt(np.mean(np.abs(Ht) ** 2, axis=0))  # against each channel's rms level
     assert np.median(np.abs(H / Ht - 1)) < 1e-3 and rel.max() < 0.02
+
+
+# ------------------------------------------------------------------------ force calibration
+def test_a_force_gain_divides_every_frf_and_its_damping_derivatives_by_the_gain(model, ops):
+    """The force sensor reading g x the applied force: the model's accelerance and its exact
+    derivatives with respect to the modal dampings are the plain model's over g."""
+    params = draw_truth_parameters(SETTINGS, np.random.default_rng(9))
+    p = np.array([params[n] for n in model.names])
+    s = ExcitationDiagnosisSettings()
+    red = ReducedFRFModel.build(ops, Stiffness(p), n_modes=40, n_deriv=s.derivative_modes, extra=s.basis_extra,
+                                below_hz=s.basis_hz)
+    slots = Slots.at(red, red.modes(p), s.band)
+    z = np.log(np.full(slots.n, 0.02))
+    f = np.linspace(6.0, 30.0, 200)
+    plain = Family.make(red, slots, Layout(p.size, slots.n), 0.02)
+    force = Family.make(red, slots, Layout(p.size, slots.n, "force"), 0.02)
+    H, dH = plain.accelerance(np.concatenate([np.log(p), z]), f, zeta_derivatives=True)
+    Hg, dHg = force.accelerance(np.concatenate([np.log(p), z, [np.log(1.07)]]), f, zeta_derivatives=True)
+    assert slots.n > 3 and np.abs(dH).max() > 0
+    np.testing.assert_allclose(Hg, H / 1.07, rtol=1e-12)
+    np.testing.assert_allclose(dHg, dH / 1.07, rtol=1e-12, atol=1e-15 * np.abs(dH).max())
+
+
+def test_a_force_calibration_campaign_is_the_effect_free_one_with_its_force_column_scaled(tmp_path, model):
+    """The truth hides a force calibration error in the measurement chain only: the runs are
+    the effect-free campaign's of the same seed, the force column times the gain."""
+    settings = ExcitationSettings(runs=1, duration=60.0, order_change=COARSE_BOX_ORDERS)
+    truth = synth_excitation(tmp_path / "g", seed=3, settings=settings, model=model,
+                             effect=EffectChoice(effect_spec("force_calibration"), 1.06))
+    synth_excitation(tmp_path / "plain", seed=3, settings=settings, model=model)
+    assert truth["effect"]["force_gain"] == 1.06 and truth["effect"]["sensor"] == EXCITER.name
+    a, b = open_campaign(tmp_path / "g").read_run("run_001"), open_campaign(tmp_path / "plain").read_run("run_001")
+    for name in a.channels:
+        scale = 1.06 if name == EXCITER.name else 1.0
+        np.testing.assert_allclose(a.channels[name], b.channels[name] * scale, rtol=1e-6, atol=1e-9)
 
 
 def test_registry_names_the_excitation_test_effects_of_the_catalogue():

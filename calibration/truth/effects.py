@@ -81,6 +81,8 @@ EFFECTS: dict[str, EffectSpec] = {s.name: s for s in (
                "resiliently mounted underfloor mass (ratio to the carbody mass) splitting a carbody mode"),
     EffectSpec("local_panel_softening", _EX, (3.0, 10.0), 5.0, "-",
                "one floor or roof panel softer than the rest (rigidity divisor)"),
+    EffectSpec("force_calibration", _EX, (0.9, 1.1), 1.05, "-",
+               "the exciter's force sensor reads this times the applied force (a calibration factor off)"),
 )}
 
 

@@ -309,6 +309,8 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
       equipment, and the structure's modal damping (to rebuild the truth, :func:`truth_model`);
     * panel softening: the panel, its group and area, the unsoftened vehicle's modes and
       each listed mode's frequency change against its MAC-paired unsoftened mode;
+    * force calibration: the force sensor and its gain (the runs are the effect-free
+      campaign's of the same seed, the force column times the gain);
     * sensor bracket (outside the catalogue): the sensor, the bracket's frequency and
       damping ratio, and |T| at its frequency.
 
@@ -318,7 +320,7 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         raise ValueError(f"effect {effect.spec.name} is for {', '.join(effect.spec.kinds)} campaigns, "
                          "not stationary excitation tests")
     if effect is not None and effect.spec.name not in ("underfloor_equipment", "local_panel_softening",
-                                                       "sensor_bracket"):
+                                                       "force_calibration", "sensor_bracket"):
         raise NotImplementedError(f"effect {effect.spec.name} is registered but not simulated")
     out = Path(out)
     g = GEOMETRY
@@ -380,6 +382,8 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         elif name == "local_panel_softening":
             unsoftened = truth_modes(parameters, settings=settings, model=model)
             details = _softening_record(modal, unsoftened, panel, settings.truth_band_hz)
+        elif name == "force_calibration":
+            details = {"sensor": EXCITER.name, "force_gain": effect.magnitude}
         elif name == "sensor_bracket":
             details = {"sensor": bracket.sensor, "frequency_hz": bracket.frequency_hz,
                        "damping_ratio": bracket.damping_ratio,
@@ -388,6 +392,8 @@ def synth_excitation(out, *, seed: int = 0, settings: ExcitationSettings = Excit
         for k in range(settings.runs):
             run_id = f"run_{k + 1:03d}"
             cols, info = simulate_run(modal, settings, rng, bracket)
+            if name == "force_calibration":  # the load cell reads the force times the gain, noise and all
+                cols = {**cols, EXCITER.name: cols[EXCITER.name] * effect.magnitude}
             w.write_run(run_id, cols)
             runs.append({"run_id": run_id, **info})
             if progress:

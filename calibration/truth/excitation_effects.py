@@ -27,6 +27,10 @@ is unchanged and the same seed draws the same vehicle parameters with or without
   panel's properties (:func:`soften_panel`); the stiffness factors of its group still act
   on it. The roof is a single panel, so its softening equals roof_membrane and
   roof_bending factors / MAGNITUDE; a floor panel's cannot be expressed by the factors.
+* ``force_calibration``: the exciter's force sensor reads MAGNITUDE times the applied
+  force (its calibration factor off). The structure and every draw are the effect-free
+  campaign's; only the recorded force column, noise included, is scaled
+  (:func:`calibration.truth.excitation.synth_excitation`).
 
 Outside the catalogue (:data:`calibration.truth.effects.UNCATALOGUED`; the diagnosis has
 no extension for it and must answer ``unexplained``):

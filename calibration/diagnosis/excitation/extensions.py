@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .equipment import fit_equipment
+from .force import fit_force
 from .softening import DIVISOR_RANGE, fit_softening
 
 
@@ -52,4 +53,10 @@ EXTENSIONS: dict[str, ExcitationExtension] = {e.name: e for e in (
         "local_panel_softening",
         "one carbody panel (roof, floor, side or end) with its rigidities divided by its own factor",
         ("panel", "rigidity_divisor"), fit_softening, null_end=("rigidity_divisor", DIVISOR_RANGE[0])),
+    ExcitationExtension(
+        "force_calibration",
+        "the exciter's force sensor reads the applied force times a gain (its calibration factor off), so every "
+        "FRF is the structure's divided by it; a carbody mass and stiffness all off by one factor would read the "
+        "same",
+        ("force_gain",), fit_force),
 )}

@@ -81,15 +81,15 @@ class Slots:
 class Layout:
     """Where each unknown sits in a least-squares vector x: log factors, log slot dampings,
     then the extension's own (log divisor; or log mass, log mounting frequency, log damping
-    ratio, mount x, mount y)."""
+    ratio, mount x, mount y; or the log gain of the force sensor)."""
 
     n_p: int
     n_slots: int
-    extension: str | None = None  # None, "softening" or "equipment"
+    extension: str | None = None  # None, "softening", "equipment" or "force"
 
     @property
     def n_ext(self) -> int:
-        return {None: 0, "softening": 1, "equipment": 5}[self.extension]
+        return {None: 0, "softening": 1, "equipment": 5, "force": 1}[self.extension]
 
     @property
     def size(self) -> int:
@@ -136,6 +136,9 @@ class Family:
             H = equipment_accelerance(f, om, zeta, Ss, e, a, m, fe, ze)
         else:
             H = modal_accelerance(f, om, zeta, Ss, e)
+        # the force sensor reads g x the force applied, so what is measured is H / g
+        gain = float(np.exp(-ext[0])) if self.layout.extension == "force" else 1.0
+        H = H * gain
         if not zeta_derivatives:
             return H
         dH = np.zeros((self.slots.n,) + H.shape, complex)
@@ -160,5 +163,5 @@ class Family:
             dU = (alpha * dy)[:, :, None] * part  # (n_f, n_on, n_s)
         else:
             dU = (e[k] * dy)[:, :, None] * Ss[:, k].T[None, :, :]
-        dH[on] = np.moveaxis(-w[:, :, None] ** 2 * dU, 1, 0)
+        dH[on] = np.moveaxis(-w[:, :, None] ** 2 * dU, 1, 0) * gain
         return H, dH

@@ -50,6 +50,8 @@ class Fitted:
             return {"equipment_mass_kg": float(m), "mass_ratio": float(m / carbody_mass),
                     "mounting_frequency_hz": float(fe), "mounting_damping_ratio": float(ze),
                     "mount_x_m": float(ext[3]), "mount_y_m": float(ext[4])}
+        if self.layout.extension == "force":
+            return {"force_gain": float(np.exp(ext[0]))}
         return {}
 
     def modes(self) -> tuple[Modes, np.ndarray]:

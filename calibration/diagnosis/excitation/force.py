@@ -1,0 +1,45 @@
+"""The extension ``force_calibration``: the exciter's force sensor reads g times the force
+it applies (a load cell's or its amplifier's calibration factor off), so every measured
+FRF is the structure's divided by g, on every channel at every frequency.
+
+The baseline cannot absorb that: its factors are stiffnesses, and a stiffness moves
+frequencies and the response near them, not the level far from resonance. A carbody whose
+mass and every stiffness were off by one common factor would read the same, and the
+FRFs cannot tell the two apart; the summary's description says so.
+
+The fit starts at the closed-form level offset of the baseline against the training FRFs
+(the weighted mean of log|H_baseline / H_measured|) and is refined jointly with the
+factors and dampings."""
+from __future__ import annotations
+
+import numpy as np
+
+from .context import Context
+from .family import Layout
+from .fitting import Fitted, factor_bounds, fit
+
+#: force gains searched (measured / applied): a calibration factor off by up to a factor 2
+#: either way; a load cell's usual uncertainty is a per cent or two
+GAIN_RANGE = (0.5, 2.0)
+
+
+def level_offset(ctx: Context, base: Fitted) -> float:
+    """log g at which ``base`` / g fits the training FRFs' levels best: the mean of
+    log|H_base / H_meas| weighted as the residual weights each line."""
+    meas = ctx.meas
+    w = 1.0 / (2 * (meas.sigma2 + ctx.settings.floor**2))
+    r = np.log(np.abs(base.accelerance(meas.frequency) / meas.H))
+    return float(np.sum(w * r) / np.sum(w))
+
+
+def fit_force(ctx: Context, base: Fitted) -> list[Fitted]:
+    """The baseline with a force gain, started at its level offset (clipped to
+    :data:`GAIN_RANGE`) and refined jointly with the factors and dampings."""
+    lay = Layout(base.layout.n_p, base.layout.n_slots, "force")
+    lo, hi = factor_bounds(ctx, lay.n_slots)
+    g_lo, g_hi = np.log(GAIN_RANGE)
+    g0 = float(np.clip(level_offset(ctx, base), g_lo + 1e-6, g_hi - 1e-6))
+    ctx.say(f"force calibration: the baseline's level offset {np.exp(g0):.4f}")
+    x0 = np.concatenate([base.x, [g0]])
+    return [fit(ctx, "force_calibration", lay, base.family.slots, x0, np.concatenate([lo, [g_lo]]),
+                np.concatenate([hi, [g_hi]]), red=base.family.red)]
