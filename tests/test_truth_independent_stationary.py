@@ -11,7 +11,8 @@ import pytest
 from calibration.data.campaign import open_campaign
 from calibration.truth.independent.hidden import STATIONARY_RANGES, parse_hidden
 from calibration.truth.independent.shell import Mesher, Section
-from calibration.truth.independent.stationary import StationarySettings, integrate, synth_excitation_independent
+from calibration.truth.independent.stationary import (StationarySettings, integrate, sensor_chain,
+                                                     synth_excitation_independent)
 from calibration.truth.independent.stationary_model import LinearSystem, carbody_modes
 
 E, NU, RHO = 70e9, 0.3, 2700.0
@@ -131,6 +132,19 @@ def test_the_stationary_effects_have_their_own_names_and_ranges():
     assert not b.catalogued
     with pytest.raises(Exception, match="outside its range"):
         parse_hidden("local_panel_softening=20", STATIONARY_RANGES)
+
+
+def test_a_force_calibration_error_changes_the_load_cell_alone():
+    """The hidden load-cell error multiplies the force channel's own drawn gain and leaves
+    every other draw as the clean campaign's of the same seed."""
+    (e,) = parse_hidden("force_calibration=0.94", STATIONARY_RANGES)
+    assert e.catalogued
+    names, s = ["acc_a", "acc_b"], StationarySettings()
+    g0, o0 = sensor_chain(names, "force", s, np.random.default_rng(4))
+    g1, o1 = sensor_chain(names, "force", s, np.random.default_rng(4), e)
+    assert o1 == o0 and all(g1[n] == g0[n] for n in names)
+    assert g1["force"] == pytest.approx(0.94 * g0["force"], rel=1e-15)
+    assert abs(g0["force"] - 1) <= s.force_gain_error
 
 
 @pytest.mark.slow

@@ -175,6 +175,20 @@ def _chain(x: np.ndarray, gain: float, noise: float, offset: float, full_scale: 
     return quantise(decimate(y, s.sim_rate, s.fs), full_scale)
 
 
+def sensor_chain(names: list[str], exciter: str, s: StationarySettings, rng: np.random.Generator,
+                 effect: HiddenEffect | None = None) -> tuple[dict[str, float], dict[str, float]]:
+    """Each sensor's gain and offset, drawn from ``rng``. A hidden ``force_calibration``
+    multiplies the load cell's drawn gain after the draws, so that the campaign is the clean
+    one's of the same seed but for its force column."""
+    gains = {n: float(1 + rng.uniform(-s.acc_gain_error, s.acc_gain_error)) for n in names}
+    gains[exciter] = float(1 + rng.uniform(-s.force_gain_error, s.force_gain_error))
+    offsets = {n: float(rng.uniform(-s.acc_offset, s.acc_offset)) for n in names}
+    offsets[exciter] = float(rng.uniform(-s.force_offset, s.force_offset))
+    if effect is not None and effect.name == "force_calibration":
+        gains[exciter] *= effect.magnitude
+    return gains, offsets
+
+
 def synth_excitation_independent(out, *, seed: int = 0, settings: StationarySettings = StationarySettings(),
                                  effect: tuple[HiddenEffect, ...] = (), fmt: str = "csv", overwrite: bool = False,
                                  car: ShellCar = ShellCar(), progress=None) -> dict:
@@ -223,10 +237,9 @@ def synth_excitation_independent(out, *, seed: int = 0, settings: StationarySett
         details = asdict(bracket)
     system = assemble(car, shell, modes, damping, node, ex_node, mounted, bracket)
     names = [a.name for a in accs]
-    gains = {n: float(1 + rng.uniform(-s.acc_gain_error, s.acc_gain_error)) for n in names}
-    gains[exciter.name] = float(1 + rng.uniform(-s.force_gain_error, s.force_gain_error))
-    offsets = {n: float(rng.uniform(-s.acc_offset, s.acc_offset)) for n in names}
-    offsets[exciter.name] = float(rng.uniform(-s.force_offset, s.force_offset))
+    gains, offsets = sensor_chain(names, exciter.name, s, rng, e)
+    if e is not None and e.name == "force_calibration":
+        details = {"sensor": exciter.name, "force_gain": e.magnitude, "with_tolerance": gains[exciter.name]}
     meta = CampaignMeta(
         kind="stationary_excitation", name=f"independent exudyn truth, stationary excitation test (seed {seed})",
         vehicle="Shinkansen-type test vehicle (independent truth: shell finite elements, exudyn)",
