@@ -183,7 +183,7 @@ def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes:
     out += alarms + notes
     out.append("hypotheses by held-out gain: " + ", ".join(
         f"{h.name} {h.gain:.0%}" for h in sorted(hypotheses, key=lambda h: -h.penalised_gain)))
-    out += [f"{h.name} not named: its fit ends where the effect vanishes, at the search's limit ("
+    out += [f"{h.name} not named: its fit ends within 1 % of where the effect vanishes ("
             + _values(h.parameters, ".3g") + "); its gain comes from re-adjusting the baseline"
             for h in hypotheses if h.at_null_end and h.gain > 0]
     if evidence.parameters_at_bounds:

@@ -18,9 +18,10 @@ class ExcitationExtension:
 
     parameters : what is fitted (counted for the complexity penalty)
     fit : (context, baseline fit) -> list of fits, best first
-    null_end : (parameter, bound) where the effect vanishes at the edge of its search: a fit
-        that ends there gains by adjusting the baseline, not by the effect, and is not named
-        as the cause
+    null_end : (parameter, value) where the effect vanishes: the edge of its search (a
+        softening divisor), or 1 for a gain. A fit that ends within 1 % of it gains by
+        adjusting the baseline, not by the effect, and is not named as the cause; for the
+        force gain that 1 % is a load cell's calibration tolerance
     """
 
     name: str
@@ -58,5 +59,5 @@ EXTENSIONS: dict[str, ExcitationExtension] = {e.name: e for e in (
         "the exciter's force sensor reads the applied force times a gain (its calibration factor off), so every "
         "FRF is the structure's divided by it; a carbody mass and stiffness all off by one factor would read the "
         "same",
-        ("force_gain",), fit_force),
+        ("force_gain",), fit_force, null_end=("force_gain", 1.0)),
 )}
