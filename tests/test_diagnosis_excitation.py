@@ -19,7 +19,7 @@ from calibration.data.outputs import CampaignWriter
 from calibration.data.errors import InputError
 from calibration.diagnosis.excitation import EXTENSIONS, ExcitationDiagnosisSettings, diagnose_excitation
 from calibration.diagnosis.excitation.basis import Operators, ReducedFRFModel, Stiffness
-from calibration.diagnosis.excitation.decision import misfit_alarms
+from calibration.diagnosis.excitation.decision import Hypothesis, confidences, misfit_alarms
 from calibration.diagnosis.excitation.evidence import UnpairedMode
 from calibration.diagnosis.excitation.family import Family, Layout, Slots
 from calibration.diagnosis.excitation.frf import equipment_accelerance, modal_accelerance
@@ -187,6 +187,37 @@ def test_a_force_gain_within_a_load_cells_tolerance_is_not_a_cause():
     force = EXTENSIONS["force_calibration"]
     assert force.at_null_end({"force_gain": 1.008}) and force.at_null_end({"force_gain": 0.992})
     assert not force.at_null_end({"force_gain": 1.03}) and not force.at_null_end({"force_gain": 0.97})
+
+
+def _hypothesis(name: str, before, after, n_params: int = 1) -> Hypothesis:
+    before, after = np.asarray(before, float), np.asarray(after, float)
+    gain = 1 - after.sum() / before.sum()
+    s = ExcitationDiagnosisSettings()
+    return Hypothesis(name, "", {}, n_params, False, {}, 1.0, tuple(f"c{i}" for i in range(before.size)), before,
+                      after, gain, float(((after - before) / np.maximum(before, 1)).max()),
+                      gain - s.penalty * n_params, None)
+
+
+def test_a_cause_is_sure_when_its_gain_holds_over_the_channels_resampled():
+    """The cause's gain is resampled over the held-out channels: halving every channel's
+    error is `high`; the same total gain carried by one channel of 27 is `moderate` (which
+    points were instrumented decides it); a runner-up that passes inside the interval makes
+    it `moderate`; each hypothesis carries its interval."""
+    s = ExcitationDiagnosisSettings()
+    before = np.linspace(5.0, 15.0, 27)
+    even = _hypothesis("even", before, before * np.linspace(0.6, 0.4, 27))
+    c, intervals = confidences([even], even, s)
+    assert c.word == "high" and c.units == 27 and c.gain == pytest.approx(even.gain)
+    assert c.interval[0] < c.gain < c.interval[1] and c.interval[0] > s.min_gain + s.penalty
+    assert intervals["even"].interval == c.interval and c.to_json()["heldout_channels"] == 27
+    one = np.r_[before[:1] + 260.0, before[1:]]  # one channel carries most of the error, and all the gain
+    lumpy = _hypothesis("lumpy", one, before)
+    c, _ = confidences([lumpy], lumpy, s)
+    assert c.gain > s.min_gain + s.penalty and c.word == "moderate" and c.interval[0] < s.min_gain
+    rival = _hypothesis("rival", before, before * (1 - even.gain + 0.01))
+    c, intervals = confidences([even, rival], even, s)
+    assert c.word == "moderate" and "runner-up" in c.why and set(intervals) == {"even", "rival"}
+    assert confidences([even], None, s)[0] is None
 
 
 def test_registry_names_the_excitation_test_effects_of_the_catalogue():
@@ -395,3 +426,7 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     assert data["evidence"]["summary"] == list(summary) and data["extension"] is None and data["gain"] is None
     assert data["split"]["training_runs"] == ["run_001"] and data["split"]["heldout_runs"] == ["run_002"]
     assert data["evidence"]["without_channel"]["channel"] == sensor
+    assert data["confidence"] is None and len(data["hypotheses"]) == len(EXTENSIONS)
+    for h in data["hypotheses"]:  # every runner-up with its gain's interval over the held-out channels
+        lo, hi = h["interval_95"]
+        assert h["heldout_channels"] == len(SENSOR_GRID) and lo <= h["gain"] <= hi, h

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...identification.excitation import LocalResonance
+from ..confidence import Confidence, from_units
 from .context import Context
 from .evidence import ChannelLeftOut, Evidence, HeldOut, UnpairedMode, confined_channel, heldout
 from .extensions import ExcitationExtension
@@ -95,17 +96,36 @@ def judge(ctx: Context, ext: ExcitationExtension, fitted: Fitted, before: np.nda
                       gain, float(loss.max()), gain - ctx.settings.penalty * ext.n_params, held)
 
 
+def passes(h: Hypothesis, settings: ExcitationDiagnosisSettings) -> bool:
+    """Whether ``h`` gains enough, loses little and does not end at its null end."""
+    s = settings
+    return h.penalised_gain >= s.min_gain and h.worst_loss <= s.max_loss and not h.at_null_end
+
+
 def name_cause(hypotheses: Sequence[Hypothesis], alarms: Sequence[str],
                settings: ExcitationDiagnosisSettings) -> tuple[str, Hypothesis | None]:
     """The cause and the hypothesis named (None for ``none`` and ``unexplained``): of the
-    hypotheses that gain enough, lose little and do not end at their null end, the one of
-    the largest penalised gain (the first of equals); without one, ``unexplained`` if
-    anything alarms, else ``none``."""
-    s = settings
-    ok = [h for h in hypotheses if h.penalised_gain >= s.min_gain and h.worst_loss <= s.max_loss
-          and not h.at_null_end]
+    hypotheses that pass (:func:`passes`), the one of the largest penalised gain (the first
+    of equals); without one, ``unexplained`` if anything alarms, else ``none``."""
+    ok = [h for h in hypotheses if passes(h, settings)]
     best = max(ok, key=lambda h: h.penalised_gain) if ok else None
     return (best.name if best else ("unexplained" if alarms else "none")), best
+
+
+def confidences(hypotheses: Sequence[Hypothesis], best: Hypothesis | None,
+                settings: ExcitationDiagnosisSettings) -> tuple[Confidence | None, dict[str, Confidence]]:
+    """(the cause's confidence, each hypothesis's gain with its interval judged against the
+    bar alone): the held-out channels are the units resampled
+    (:mod:`calibration.diagnosis.confidence`). A channel's E adds to the total the gain is
+    taken over, and which points of the floor were instrumented is a choice the gain should
+    not hang on."""
+    s = settings
+    bar = {h.name: s.min_gain + s.penalty * h.n_params for h in hypotheses}
+    intervals = {h.name: from_units(h.before, h.after, bar[h.name], [], "channels") for h in hypotheses}
+    if best is None:
+        return None, intervals
+    rivals = [h.gain for h in hypotheses if h is not best and passes(h, s)]
+    return from_units(best.before, best.after, bar[best.name], rivals, "channels"), intervals
 
 
 def misfit_alarms(heldout_error: Mapping[str, float], unpaired: Sequence[UnpairedMode],
@@ -166,13 +186,18 @@ def _values(parameters: dict, fmt: str) -> str:
 
 
 def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes: list[str], evidence: Evidence,
-                  hypotheses: Sequence[Hypothesis]) -> list[str]:
-    """The diagnosis in words: the cause and why, the alarms and notes, the hypotheses by
-    gain, those not named for ending at their null end, factors at their bounds."""
+                  hypotheses: Sequence[Hypothesis], confidence: Confidence | None = None,
+                  intervals: Mapping[str, Confidence] | None = None) -> list[str]:
+    """The diagnosis in words: the cause, why and how sure, the alarms and notes, the
+    hypotheses by gain with their intervals, those not named for ending at their null end,
+    factors at their bounds."""
     out = []
+    intervals = intervals or {}
     if best is not None:
+        sure = "" if confidence is None else \
+            f"{confidence.interval_words()}; confidence {confidence.word}: {confidence.why}"
         out.append(f"cause: {cause} ({best.description}); held-out FRF error over all channels reduced by "
-                   f"{best.gain:.0%} (most on {best.best_channel}, {best.best_channel_reduction:.0%})")
+                   f"{best.gain:.0%} (most on {best.best_channel}, {best.best_channel_reduction:.0%}){sure}")
         out.append("extension parameters: " + _values(best.parameters, ".4g"))
     elif cause == "unexplained":
         out.append("unexplained: the calibrated box model leaves a systematic misfit and no extension in the registry "
@@ -181,8 +206,11 @@ def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes:
         out.append("none: the calibrated box model explains the held-out FRFs within the noise "
                    f"(mean normalised error {evidence.heldout_error_mean:.2f}) and around every identified mode")
     out += alarms + notes
-    out.append("hypotheses by held-out gain: " + ", ".join(
-        f"{h.name} {h.gain:.0%}" for h in sorted(hypotheses, key=lambda h: -h.penalised_gain)))
+    def spread(h: Hypothesis) -> str:
+        c = intervals.get(h.name)
+        return "" if c is None or c.interval is None else f" ({c.interval[0]:.0%} to {c.interval[1]:.0%})"
+    out.append("hypotheses by held-out gain (95 % interval over the channels): " + ", ".join(
+        f"{h.name} {h.gain:.0%}{spread(h)}" for h in sorted(hypotheses, key=lambda h: -h.penalised_gain)))
     out += [f"{h.name} not named: its fit ends within 1 % of where the effect vanishes ("
             + _values(h.parameters, ".3g") + "); its gain comes from re-adjusting the baseline"
             for h in hypotheses if h.at_null_end and h.gain > 0]

@@ -15,7 +15,7 @@ from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import baseline_start, fit_baseline, modal_damping
 from .context import Context, build_context
-from .decision import judge, misfit_alarms, name_cause, summary_lines
+from .decision import confidences, judge, misfit_alarms, name_cause, summary_lines
 from .evidence import HeldOut, compare_modes, confined_channel, gather_evidence, heldout, without_channel
 from .extensions import EXTENSIONS
 from .fitting import Fitted, factor_bounds, fit
@@ -100,7 +100,8 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     alarms, notes = misfit_alarms(per_channel, evidence.unpaired, s, without_channel=left_out,
                                   local=evidence.local_resonances)
     cause, best = name_cause(hypotheses, alarms, s)
-    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses)) \
+    confidence, intervals = confidences(hypotheses, best, s)
+    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses, confidence, intervals)) \
         + (_ranges_words(campaign.meta.priors, ctx),)
     extension_modes = None if best is None else compare_modes(ctx, fits[best.name])
     stages.update()
@@ -109,7 +110,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
                             {n: (a, b) for n, a, b in zip(ctx.names, ctx.low, ctx.high)}, modal_damping(base))
     return ExcitationDiagnosis(str(campaign.root), cause, summary, ctx.meas_test, evidence, record, hypotheses, best,
                                extension_modes, tuple(ctx.train.label), tuple(ctx.test.label), s, ctx.n_modes,
-                               ctx.model.n_dof, time.perf_counter() - t0)
+                               ctx.model.n_dof, time.perf_counter() - t0, confidence, intervals)
 
 
 def _ranges_words(priors, ctx) -> str:

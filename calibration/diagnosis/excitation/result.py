@@ -2,10 +2,11 @@
 the figures are read from."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...data.outputs import RESULT_FORMATS
+from ..confidence import Confidence
 from .baseline import SwarmRecord
 from .context import KIND
 from .data import MeasuredFRF
@@ -78,6 +79,9 @@ class ExcitationDiagnosis:
     training_runs, heldout_runs : the split, as run labels
     basis_modes : full-model modes every reduced basis kept; model_dof : the full model's DOFs
     wall_s : [s] wall time of the diagnosis
+    confidence : the cause's held-out gain with its 95 % interval over the channels and its
+        word (None for ``none`` and ``unexplained``)
+    intervals : each hypothesis's gain with its interval, by name
     """
 
     campaign: str
@@ -95,6 +99,8 @@ class ExcitationDiagnosis:
     basis_modes: int
     model_dof: int
     wall_s: float
+    confidence: Confidence | None = None
+    intervals: dict = field(default_factory=dict)
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -110,9 +116,13 @@ class ExcitationDiagnosis:
                 "name": best.name, "parameters": dict(best.parameters),
                 "model": {"model": "box", "parameters": dict(best.factors), best.name: dict(best.parameters)}},
             "gain": None if best is None else {"heldout_error": best.heldout_error_json(),
-                                               "best_channel": best.best_channel, "reduction": best.gain},
+                                               "best_channel": best.best_channel, "reduction": best.gain,
+                                               **({} if self.confidence is None else
+                                                  {k: v for k, v in self.confidence.to_json().items()
+                                                   if k != "gain"})},
+            "confidence": None if self.confidence is None else self.confidence.word,
             "baseline": self.baseline.to_json(),
-            "hypotheses": [h.to_json() for h in self.hypotheses],
+            "hypotheses": [{**h.to_json(), **self._interval_json(h.name)} for h in self.hypotheses],
             "split": {"training_runs": list(self.training_runs), "heldout_runs": list(self.heldout_runs),
                       "measure": f"normalised FRF error over {s.band[0]:g}-{s.band[1]:g} Hz per channel (1 = noise)"},
             "settings": {"min_gain": s.min_gain, "penalty_per_parameter": s.penalty, "max_loss": s.max_loss,
@@ -125,6 +135,11 @@ class ExcitationDiagnosis:
                          "model_dof": self.model_dof},
             "wall_s": self.wall_s,
         }
+
+    def _interval_json(self, name: str) -> dict:
+        c = self.intervals.get(name)
+        return {"interval_95": None if c is None or c.interval is None else list(c.interval),
+                "heldout_channels": None if c is None else c.units}
 
     def plot(self, stem) -> list[Path]:
         """Write ``<stem>_frf.png`` (held-out FRFs measured, of the baseline and of the

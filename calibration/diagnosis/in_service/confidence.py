@@ -1,52 +1,21 @@
-"""How sure a finding is: its held-out gain with a 95 % interval, and a word for it.
+"""How sure an in-service finding is (:mod:`calibration.diagnosis.confidence`): the held-out
+gain of a response extension on its channel, resampled over the held-out data's (run, speed
+bin) cells.
 
-The held-out gain of a response extension on its channel is 1 - R_after / R_before, with R
-the residual power summed over the held-out data's (run, speed bin) cells and the
-channel's signal bands. Residual powers add over cells, so the cells are the units to
-resample: a bootstrap over them (``BOOTSTRAP`` draws from a fixed seed) gives the gain's
-95 % interval without assuming a distribution, from the data the decision judged.
-
-The word follows from the interval and the decision's bar (``min_gain`` plus the penalty
-for the extension's parameters):
-
-* **high**: the interval's lower end clears the bar, and no other hypothesis that passed
-  has a gain inside the interval;
-* **moderate**: the gain clears the bar but the interval reaches below it, or a runner-up
-  gains about as much;
-* **low**: fewer than ``MIN_CELLS`` held-out cells, too few to resample.
+The gain is 1 - R_after / R_before, with R the residual power summed over the cells and the
+channel's signal bands. Residual powers add over cells, so the cells are the units a
+bootstrap resamples.
 
 A rail or wheel finding is held out by speed or by run with one error each; it carries
 its gain without an interval and the word ``moderate``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from ..confidence import Confidence, from_units
 from .evidence import DiagnosisData
 from .response import ResponseFit, residuals_by_cell
-
-#: bootstrap draws of the held-out cells
-BOOTSTRAP = 2000
-#: fewer held-out cells than this give no interval (and the word "low")
-MIN_CELLS = 4
-
-
-@dataclass(frozen=True)
-class Confidence:
-    """A finding's held-out gain, its 95 % interval (None: not resampled) over ``cells``
-    held-out cells, and the word for it, with the reason."""
-
-    gain: float
-    interval: tuple[float, float] | None
-    cells: int
-    word: str
-    why: str
-
-    def to_json(self) -> dict:
-        return {"gain": self.gain, "interval_95": None if self.interval is None else list(self.interval),
-                "heldout_cells": self.cells, "confidence": self.word, "why": self.why}
 
 
 def cell_residuals(data: DiagnosisData, fit: ResponseFit, channel: int, masks: np.ndarray) -> np.ndarray:
@@ -89,23 +58,8 @@ def hypothesis_intervals(data: DiagnosisData, before: ResponseFit, hyps, masks: 
 
 def from_cells(r0: np.ndarray, r1: np.ndarray, bar: float, rivals: list[float]) -> Confidence:
     """The confidence of a gain from the held-out cells' residual powers before (``r0``) and
-    after (``r1``) (see the module's description)."""
-    r0, r1 = np.asarray(r0, float), np.asarray(r1, float)
-    gain = float(1.0 - r1.sum() / max(r0.sum(), 1e-300))
-    if r0.size < MIN_CELLS:
-        return Confidence(gain, None, r0.size, "low", f"{r0.size} held-out cells, too few to resample")
-    rng = np.random.default_rng(0)
-    draws = rng.integers(0, r0.size, size=(BOOTSTRAP, r0.size))
-    boot = 1.0 - r1[draws].sum(axis=1) / np.maximum(r0[draws].sum(axis=1), 1e-300)
-    lo, hi = (float(x) for x in np.percentile(boot, [2.5, 97.5]))
-    close = [g for g in rivals if lo <= g]
-    if lo >= bar and not close:
-        word, why = "high", f"the interval's lower end {lo:.0%} clears the bar {bar:.0%}"
-    elif lo < bar:
-        word, why = "moderate", f"the interval reaches {lo:.0%}, below the bar {bar:.0%}"
-    else:
-        word, why = "moderate", f"a runner-up gains {max(close):.0%}, inside the interval"
-    return Confidence(gain, (lo, hi), r0.size, word, why)
+    after (``r1``)."""
+    return from_units(r0, r1, bar, rivals, "cells")
 
 
 def held_out_confidence(gain: float, how: str) -> Confidence:

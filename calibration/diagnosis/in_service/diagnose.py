@@ -204,10 +204,8 @@ def _summary(cause: str, sel: Selection, alarm_words: list[str], ev: Evidence, h
     out = []
     for f in sel.causes:
         c = f.confidence
-        interval = "" if c.interval is None else \
-            f" (95 % interval {c.interval[0]:.0%} to {c.interval[1]:.0%} over {c.cells} held-out cells)"
         out.append(f"cause: {f.name} ({EXTENSIONS[f.name].description}); held-out error on {f.best_channel} "
-                   f"reduced by {f.gain:.0%}{interval}; confidence {c.word}: {c.why}; {_values(f.parameters)}")
+                   f"reduced by {f.gain:.0%}{c.interval_words()}; confidence {c.word}: {c.why}; {_values(f.parameters)}")
     if not sel.causes and cause == "unexplained":
         out.append("unexplained: the baseline leaves systematic residuals and no extension in the registry "
                    "reduces the held-out error enough")

@@ -115,7 +115,7 @@ class InServiceDiagnosis:
     def _interval_json(self, name: str) -> dict:
         c = self.intervals.get(name)
         return {"interval_95": None if c is None or c.interval is None else list(c.interval),
-                "heldout_cells": None if c is None else c.cells}
+                "heldout_cells": None if c is None else c.units}
 
     def plot(self, stem: Path) -> list[Path]:
         """Draw the residual PSD before and after the extension (``<stem>_residual_psd.png``)
