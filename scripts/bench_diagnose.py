@@ -98,6 +98,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # o
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
+from scipy.stats import binomtest  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -241,16 +242,6 @@ def verdict(case: Case, answer: str) -> str:
     return "missed"
 
 
-def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """Wilson score interval (95 % for the default z) of a rate of k successes in n trials."""
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z / (1 + z * z / n) * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
-
-
 SEED_STRIDE = 50  # seeds per case in the rule first_seed + 50 k + j
 
 
@@ -333,8 +324,10 @@ def _made_for(c: dict) -> dict:
 
 
 def _rate(k: int, n: int) -> str:
-    lo, hi = wilson(k, n)
-    return f"{k}/{n} = {k / n:.0%} (95 % interval {lo:.0%}-{hi:.0%})" if n else "0/0"
+    if not n:
+        return "0/0"
+    ci = binomtest(k, n).proportion_ci(method="wilson")
+    return f"{k}/{n} = {k / n:.0%} (95 % interval {ci.low:.0%}-{ci.high:.0%})"
 
 
 def _report_exudyn(results: list[dict], args) -> None:

@@ -42,6 +42,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from scipy.stats import binomtest  # noqa: E402
 
 EFFECT_NAMES = ("underfloor_equipment", "local_panel_softening", "force_calibration")
 OUTSIDE = "sensor_bracket"  # outside the catalogue: must be `unexplained`
@@ -82,6 +83,7 @@ def _case(case: dict) -> dict:
     return {**case, "cause": result.cause, "hidden": hidden,
             "found": dict(ext.parameters) if ext else None,
             "gain": ext.gain if ext else None,
+            "confidence": None if result.confidence is None else result.confidence.to_json(),
             "hypotheses": {h.name: round(h.gain, 4) for h in result.hypotheses},
             "baseline_heldout_error": result.evidence.heldout_error_mean,
             "unpaired_modes": [{"hz": round(r.identified_hz, 3), "mac": round(r.mac, 3),
@@ -132,6 +134,9 @@ def main() -> int:
             rows.append(r)
             mag = "" if r["magnitude"] is None else f"={r['magnitude']:.3g}"
             gain = "" if r["gain"] is None else f", held-out error -{r['gain']:.0%}"
+            if r["confidence"] is not None:
+                lo, hi = r["confidence"]["interval_95"] or (float("nan"),) * 2
+                gain += f" ({lo:.0%} to {hi:.0%}, {r['confidence']['confidence']})"
             print(f"seed {r['seed']}: {r['effect'] or 'effect-free'}{mag} -> {r['cause']}{gain} "
                   f"(hypotheses {r['hypotheses']}; baseline error {r['baseline_heldout_error']:.2f}; "
                   f"hidden {r['hidden']}; found {r['found']}; diagnosis {r['diagnose_s']:.0f} s)", flush=True)
@@ -153,14 +158,20 @@ def main() -> int:
         rate = len(right) / len(sel)
         gains = [r["gain"] for r in right]
         ok &= rate >= 0.9 and all(g >= 0.3 for g in gains)
-        print(f"{name}: right cause {len(right)}/{len(sel)} = {rate:.0%} (target >= 90 %); held-out error "
+        ci = binomtest(len(right), len(sel)).proportion_ci(method="wilson")
+        words = [r["confidence"]["confidence"] for r in right if r.get("confidence")]
+        print(f"{name}: right cause {len(right)}/{len(sel)} = {rate:.0%} (95 % interval {ci.low:.0%}-{ci.high:.0%}; "
+              f"target >= 90 %); confidence when right: {', '.join(f'{w} {words.count(w)}' for w in sorted(set(words)))}"
+              f"; held-out error "
               f"reduction when right: min {min(gains, default=float('nan')):.1%}, median "
               f"{np.median(gains) if gains else float('nan'):.1%} (target >= 30 %)")
     free = [r for r in rows if r["effect"] is None]
     alarms = [r for r in free if r["cause"] != "none"]
     ok &= len(alarms) <= 0.1 * len(free)
     if free:
-        print(f"effect-free: false alarms {len(alarms)}/{len(free)} = {len(alarms) / len(free):.0%} (target <= 10 %)")
+        ci = binomtest(len(alarms), len(free)).proportion_ci(method="wilson")
+        print(f"effect-free: false alarms {len(alarms)}/{len(free)} = {len(alarms) / len(free):.0%} (95 % interval "
+              f"{ci.low:.0%}-{ci.high:.0%}; target <= 10 %)")
     outside = [r for r in rows if r["effect"] == OUTSIDE]
     if outside:
         named = [r for r in outside if r["cause"] != "unexplained"]

@@ -20,12 +20,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import math  # noqa: E402
 import multiprocessing  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
+
+from scipy.stats import binomtest  # noqa: E402
 
 #: position in a series -> (case, effect, magnitude), as in the test file's table
 LAYOUT = ((1, "equipment_low", "underfloor_equipment", 0.01), (2, "equipment_high", "underfloor_equipment", 0.05),
@@ -34,16 +35,6 @@ LAYOUT = ((1, "equipment_low", "underfloor_equipment", 0.01), (2, "equipment_hig
           (7, "force_low", "force_calibration", 0.96), (8, "force_high", "force_calibration", 1.10))
 COARSE_BOX_ORDERS = -4  # tests/conftest.py
 _MODEL = {}
-
-
-def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """95 % Wilson score interval of a rate k/n."""
-    if n == 0:
-        return 0.0, 1.0
-    p = k / n
-    c = (p + z * z / (2 * n)) / (1 + z * z / n)
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, c - h), min(1.0, c + h)
 
 
 def _init() -> None:
@@ -76,6 +67,8 @@ def _case(case: dict) -> dict:
     return {**case, "cause": result.cause, "expected": expected, "right": result.cause == expected,
             "gain": result.extension.gain if result.extension else None, "panel": eff.get("panel"),
             "found": dict(result.extension.parameters) if result.extension else None,
+            "confidence": None if result.confidence is None else
+            f"{result.confidence.word}, {result.confidence.interval_words().strip(' ()')}",
             "hypotheses": {h.name: round(h.gain, 3) for h in result.hypotheses},
             "baseline_heldout_error": result.evidence.heldout_error_mean, "wall_s": wall}
 
@@ -93,21 +86,22 @@ def main() -> int:
     with multiprocessing.get_context("spawn").Pool(args.jobs, initializer=_init) as pool:
         for r in pool.imap_unordered(_case, cases):
             rows.append(r)
-            gain = "" if r["gain"] is None else f", held-out error -{r['gain']:.0%}, found {r['found']}"
+            gain = "" if r["gain"] is None else \
+                f", held-out error -{r['gain']:.0%} (confidence {r['confidence']}), found {r['found']}"
             print(f"seed {r['seed']} {r['case']}{'' if r['panel'] is None else ' (' + r['panel'] + ')'}: "
                   f"{r['cause']} ({'right' if r['right'] else 'WRONG, expected ' + r['expected']}{gain}; "
                   f"hypotheses {r['hypotheses']}; baseline error {r['baseline_heldout_error']:.2f}; "
                   f"{r['wall_s']:.0f} s)", flush=True)
     rows.sort(key=lambda r: r["seed"])
     k, n = sum(r["right"] for r in rows), len(rows)
-    lo, hi = wilson(k, n)
-    print(f"\nright answer {k}/{n} = {k / n:.0%} (95 % interval {lo:.0%}-{hi:.0%})")
+    ci = binomtest(k, n).proportion_ci(method="wilson")
+    print(f"\nright answer {k}/{n} = {k / n:.0%} (95 % interval {ci.low:.0%}-{ci.high:.0%})")
     for _, name, _, _ in LAYOUT:
         sel = [r for r in rows if r["case"] == name]
         if sel:
             kk = sum(r["right"] for r in sel)
-            a, b = wilson(kk, len(sel))
-            print(f"  {name}: {kk}/{len(sel)} (95 % interval {a:.0%}-{b:.0%}); wrong: "
+            ci = binomtest(kk, len(sel)).proportion_ci(method="wilson")
+            print(f"  {name}: {kk}/{len(sel)} (95 % interval {ci.low:.0%}-{ci.high:.0%}); wrong: "
                   f"{', '.join(str(r['seed']) + ' -> ' + r['cause'] for r in sel if not r['right']) or 'none'}")
     return 0
 
