@@ -31,49 +31,15 @@ sampling scatter is *not observable* with this sensor set.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Callable
-
 import numpy as np
 
 from ...models.car2d import CarExtras
+from ..limits import Z, Detectability, Limit, Magnitude, search
 from .evidence import DiagnosisData, signal_bands
 from .extensions import EXTENSIONS, FLOOR_DX_M
 from .response import FIT_NAMES, ResponseFit, SensorModel, channel_power, input_noise_power, response_nrp, transfer
 from .track import collapse_shift
 from .wheels import polygon_error
-
-#: standard deviations of the gain's sampling scatter an effect must clear: a detectable
-#: effect's expected gain clears the bar with about 95 % probability (one-sided)
-Z = 1.645
-#: grid points from the weak to the strong end of a magnitude's range before bisection
-GRID = 9
-
-
-@dataclass(frozen=True)
-class Magnitude:
-    """The physical size of an extension's effect: ``parameter`` [``unit``] from ``weak``
-    (the range's end where the effect is weakest) to ``strong``; for a response
-    extension the other parameters are held at ``held``. ``signed``: a magnitude of either
-    sign (both are checked, the weaker counts). ``log``: the range is searched in log."""
-
-    parameter: str
-    unit: str
-    weak: float
-    strong: float
-    held: dict = field(default_factory=dict)
-    signed: bool = False
-    log: bool = True
-    # further values of the held parameters: the limit is found at each, and the weakest is
-    # the limit (what the effect's shape will be is not known before it is found)
-    across: tuple[dict, ...] = ()
-
-    def at(self, t: float) -> float:
-        """The magnitude a fraction ``t`` (0 weak, 1 strong) along the range."""
-        if self.log:
-            return float(self.weak * (self.strong / self.weak) ** t)
-        return float(self.weak + t * (self.strong - self.weak))
-
 
 #: effects on the carbody itself: what they give back to the bogies through the air springs
 #: is all a bogie-only sensor set has of them
@@ -101,73 +67,6 @@ _missing = [n for n, e in EXTENSIONS.items()
             if e.kind == "response" and not e.always_normal and n not in RESPONSE_MAGNITUDES]
 if _missing:
     raise ImportError(f"detectability.RESPONSE_MAGNITUDES lacks the response extension(s) {', '.join(_missing)}")
-
-
-@dataclass(frozen=True)
-class Limit:
-    """One extension's detectable limit: its effect is detected beyond ``detectable_beyond``
-    (towards the strong end of its range; None: not detectable within its range or not
-    observable), in words ``why``."""
-
-    name: str
-    parameter: str
-    unit: str
-    detectable_beyond: float | None
-    observable: bool
-    why: str
-    stronger: str  # "above" or "below": which side of the limit is the stronger effect
-    # the sensors it would take (e.g. "carbody sensors"), when this set cannot name it at any size
-    needs: str | None = None
-
-    def to_json(self) -> dict:
-        return {"parameter": self.parameter, "unit": self.unit, "detectable_beyond": self.detectable_beyond,
-                "observable": self.observable, "why": self.why}
-
-    def words(self) -> str:
-        if not self.observable:
-            return f"{self.name}: not observable with these sensors"
-        if self.detectable_beyond is None and self.needs:
-            return f"{self.name}: not observable without {self.needs}"
-        if self.detectable_beyond is None:
-            return f"{self.name}: not detectable within its range"
-        op = ">=" if self.stronger == "above" else "<="
-        return f"{self.name} {self.parameter} {op} {self.detectable_beyond:.3g} {self.unit}"
-
-
-@dataclass(frozen=True)
-class Detectability:
-    """Every extension's limit on this campaign."""
-
-    limits: tuple[Limit, ...]
-
-    def to_json(self) -> dict:
-        return {x.name: x.to_json() for x in self.limits}
-
-    def words(self) -> str:
-        return "; ".join(x.words() for x in self.limits)
-
-
-def _search(mag: Magnitude, judge: Callable[[float], tuple[float, float]], bar: float):
-    """(limit or None, margin at the strong end, observable at the strong end): ``judge(theta)``
-    gives (gain less Z sigma, Z sigma-normalised effect) for magnitude theta."""
-    ts = np.linspace(0.0, 1.0, GRID)
-    if not mag.log:
-        ts = ts[1:]  # a linear range starts at no effect
-    margins = [judge(mag.at(t))[0] - bar for t in ts]
-    strong, signif = judge(mag.strong)
-    observable = signif >= 1.0
-    if margins[-1] < 0:
-        return None, strong, observable
-    i = len(ts) - 1  # the weakest grid point from which on every stronger one is detectable
-    while i > 0 and margins[i - 1] >= 0:
-        i -= 1
-    if i == 0 and mag.log:
-        return mag.at(ts[0]), strong, observable
-    lo, hi = (ts[i - 1] if i > 0 else 0.0), ts[i]
-    for _ in range(8):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if judge(mag.at(mid))[0] >= bar else (mid, hi)
-    return mag.at(hi), strong, observable
 
 
 class _Responses:
@@ -260,7 +159,7 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
         variants, names = tuple({} for _ in each_sensor), each_sensor
     else:
         variants, names = (mag.held, *mag.across), [mag.parameter] * (1 + len(mag.across))
-    found = [_search(mag, judge_at(v, n), bar) for v, n in zip(variants, names)]
+    found = [search(mag, judge_at(v, n), bar) for v, n in zip(variants, names)]
     k = _weakest(mag, found)
     limit, strong, observable = found[k]
     stronger = "above" if mag.strong > mag.weak else "below"
@@ -336,7 +235,7 @@ def _track_limit(data: DiagnosisData, base: ResponseFit, bar: float) -> Limit:
         c = int(np.argmax(g))
         return float(g[c]), float(up[c] / max(Z * sd[c], 1e-300))
 
-    limit, strong, observable = _search(mag, judge, bar)
+    limit, strong, observable = search(mag, judge, bar)
     held = f"damping ratio {zeta:g}, moving mass {m_eff:.0f} kg per wheelset"
     if limit is None:
         why = (f"not detectable within its range {mag.strong:.3g}-{mag.weak:.3g} N/m (track resonance "
