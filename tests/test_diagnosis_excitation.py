@@ -20,6 +20,7 @@ from calibration.data.errors import InputError
 from calibration.diagnosis.excitation import EXTENSIONS, ExcitationDiagnosisSettings, diagnose_excitation
 from calibration.diagnosis.excitation.basis import Operators, ReducedFRFModel, Stiffness
 from calibration.diagnosis.excitation.decision import Hypothesis, confidences, misfit_alarms
+from calibration.diagnosis.excitation.detectability import Refit
 from calibration.diagnosis.excitation.evidence import UnpairedMode
 from calibration.diagnosis.excitation.family import Family, Layout, Slots
 from calibration.diagnosis.excitation.frf import equipment_accelerance, modal_accelerance
@@ -218,6 +219,35 @@ def test_a_cause_is_sure_when_its_gain_holds_over_the_channels_resampled():
     c, intervals = confidences([even, rival], even, s)
     assert c.word == "moderate" and "runner-up" in c.why and set(intervals) == {"even", "rival"}
     assert confidences([even], None, s)[0] is None
+
+
+def test_the_predicted_gain_of_an_effect_is_what_data_carrying_it_give():
+    """Detectability's prediction against simulated data: a baseline residual of noise (the
+    error per line e, random), an effect whose part the baseline's parameters cannot mimic
+    adds to it; the mean and scatter of the gain a perfect extension brings over many noise
+    draws are the predicted ones. What the parameters can mimic (a multiple of a Jacobian
+    column) is absorbed: it adds nothing."""
+    rng = np.random.default_rng(5)
+    n_f, n_s = 300, 6
+    e = rng.uniform(0.5, 3.0, (n_f, n_s))
+    J = rng.standard_normal((2 * n_f * n_s, 3))
+    effect = np.zeros((2, n_f, n_s))
+    effect[0, 100:140, 2] = 2.5  # a misfit near one resonance on one channel, log-magnitude
+    effect[1, 100:140, 2] = -1.5
+    d = effect.ravel()
+    refit = Refit(J, J, e)
+    gain, sigma = refit.predict(d, d)
+    beta, *_ = np.linalg.lstsq(J, d, rcond=None)
+    left = (d - J @ beta).reshape(2, n_f, n_s)
+    gains = []
+    for _ in range(400):
+        r0 = rng.standard_normal((2, n_f, n_s)) * np.sqrt(e / 2)
+        before = ((r0 + left) ** 2).sum(axis=0).mean(axis=0).sum()
+        after = (r0 ** 2).sum(axis=0).mean(axis=0).sum()
+        gains.append(1 - after / before)
+    assert 0.02 < gain < 0.5 and np.mean(gains) == pytest.approx(gain, rel=0.05)
+    assert np.std(gains) == pytest.approx(sigma, rel=0.2)
+    assert refit.predict(J @ np.array([0.3, -1.0, 2.0]), J @ np.array([0.3, -1.0, 2.0]))[0] < 1e-12
 
 
 def test_registry_names_the_excitation_test_effects_of_the_catalogue():
@@ -427,6 +457,9 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     assert data["split"]["training_runs"] == ["run_001"] and data["split"]["heldout_runs"] == ["run_002"]
     assert data["evidence"]["without_channel"]["channel"] == sensor
     assert data["confidence"] is None and len(data["hypotheses"]) == len(EXTENSIONS)
+    detect = data["detectability"]  # what this campaign could have named, each extension on its own scale
+    assert set(detect) == set(EXTENSIONS) and all(d["observable"] for d in detect.values()), detect
+    assert detect["force_calibration"]["detectable_beyond"] >= 0.01  # a load cell's tolerance is never named
     for h in data["hypotheses"]:  # every runner-up with its gain's interval over the held-out channels
         lo, hi = h["interval_95"]
         assert h["heldout_channels"] == len(SENSOR_GRID) and lo <= h["gain"] <= hi, h

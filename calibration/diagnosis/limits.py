@@ -109,3 +109,12 @@ def search(mag: Magnitude, judge: Callable[[float], tuple[float, float]], bar: f
     return mag.at(hi), strong, observable
 
 
+def weakest(mag: Magnitude, found: list) -> int:
+    """Index of the weakest of ``found`` ((limit, strong, observable) per held variant): one
+    not observable, else one not detectable, else the limit nearest the strong end."""
+    def rank(x):
+        limit, _, observable = x
+        if not observable or limit is None:
+            return (0 if not observable else 1, 0.0)
+        return (2, limit if mag.strong < mag.weak else -limit)
+    return min(range(len(found)), key=lambda i: rank(found[i]))

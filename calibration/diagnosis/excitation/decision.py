@@ -19,6 +19,7 @@ import numpy as np
 
 from ...identification.excitation import LocalResonance
 from ..confidence import Confidence, from_units
+from ..limits import Detectability
 from .context import Context
 from .evidence import ChannelLeftOut, Evidence, HeldOut, UnpairedMode, confined_channel, heldout
 from .extensions import ExcitationExtension
@@ -187,7 +188,8 @@ def _values(parameters: dict, fmt: str) -> str:
 
 def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes: list[str], evidence: Evidence,
                   hypotheses: Sequence[Hypothesis], confidence: Confidence | None = None,
-                  intervals: Mapping[str, Confidence] | None = None) -> list[str]:
+                  intervals: Mapping[str, Confidence] | None = None, detect: Detectability | None = None
+                  ) -> list[str]:
     """The diagnosis in words: the cause, why and how sure, the alarms and notes, the
     hypotheses by gain with their intervals, those not named for ending at their null end,
     factors at their bounds."""
@@ -204,7 +206,8 @@ def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes:
                    "reduces the held-out error enough")
     else:
         out.append("none: the calibrated box model explains the held-out FRFs within the noise "
-                   f"(mean normalised error {evidence.heldout_error_mean:.2f}) and around every identified mode")
+                   f"(mean normalised error {evidence.heldout_error_mean:.2f}) and around every identified mode"
+                   + ("" if detect is None else f"; no effect above these sizes: {detect.words()}"))
     out += alarms + notes
     def spread(h: Hypothesis) -> str:
         c = intervals.get(h.name)

@@ -16,6 +16,7 @@ from ..threads import one_blas_thread
 from .baseline import baseline_start, fit_baseline, modal_damping
 from .context import Context, build_context
 from .decision import confidences, judge, misfit_alarms, name_cause, summary_lines
+from .detectability import detectability
 from .evidence import HeldOut, compare_modes, confined_channel, gather_evidence, heldout, without_channel
 from .extensions import EXTENSIONS
 from .fitting import Fitted, factor_bounds, fit
@@ -101,7 +102,9 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
                                   local=evidence.local_resonances)
     cause, best = name_cause(hypotheses, alarms, s)
     confidence, intervals = confidences(hypotheses, best, s)
-    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses, confidence, intervals)) \
+    detect = detectability(ctx, base, fits)
+    summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses, confidence, intervals,
+                                  detect)) \
         + (_ranges_words(campaign.meta.priors, ctx),)
     extension_modes = None if best is None else compare_modes(ctx, fits[best.name])
     stages.update()
@@ -110,7 +113,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
                             {n: (a, b) for n, a, b in zip(ctx.names, ctx.low, ctx.high)}, modal_damping(base))
     return ExcitationDiagnosis(str(campaign.root), cause, summary, ctx.meas_test, evidence, record, hypotheses, best,
                                extension_modes, tuple(ctx.train.label), tuple(ctx.test.label), s, ctx.n_modes,
-                               ctx.model.n_dof, time.perf_counter() - t0, confidence, intervals)
+                               ctx.model.n_dof, time.perf_counter() - t0, confidence, intervals, detect)
 
 
 def _ranges_words(priors, ctx) -> str:

@@ -44,21 +44,45 @@ class SmoothResidual:
         return ((np.log(self.S @ np.abs(H) ** 2) - self.ref) / 0.1).ravel()
 
 
+def jacobian(fam: Family, x, meas: MeasuredFRF, floor: float, free: np.ndarray, hi: np.ndarray,
+             residual_of=None) -> np.ndarray:
+    """d :func:`residual` / d x[free] at ``x`` (or of ``residual_of``, a smoothed residual,
+    whose damping columns are differenced too). The damping columns of the exact residual
+    are exact, the others forward differences (step 1e-4 in the log units of the factors
+    and the extension's parameters, 0.1 mm for a mount point [m]; backwards where ``hi``
+    is nearer)."""
+    lay = fam.layout
+    exact = residual_of is None
+    residual_of = functools.partial(residual, meas, floor=floor) if exact else residual_of
+    scale = 1.0 / np.sqrt(2 * (meas.sigma2 + floor**2))
+    bad = np.full(residual_of(meas.H).size, 1e3)
+    H, dH = fam.accelerance(x, meas.frequency, zeta_derivatives=True)
+    r0 = residual_of(H) if np.all(np.isfinite(H)) and not np.any(H == 0) else bad
+    cols = []
+    for j in np.flatnonzero(free):
+        if exact and lay.n_p <= j < lay.n_p + lay.n_slots:
+            q = dH[j - lay.n_p] / H * scale
+            cols.append(np.concatenate([q.real.ravel(), q.imag.ravel()]))
+            continue
+        h = 1e-4 * max(1.0, abs(x[j]))
+        h = -h if x[j] + h > hi[j] else h
+        xh = np.array(x, float)
+        xh[j] += h
+        Hh = fam.accelerance(xh, meas.frequency)
+        rh = residual_of(Hh) if np.all(np.isfinite(Hh)) and not np.any(Hh == 0) else bad
+        cols.append((rh - r0) / h)
+    return np.column_stack(cols)
+
+
 def least_squares(fam: Family, x0, lo, hi, meas: MeasuredFRF, max_nfev: int, floor: float,
                   free: np.ndarray | None = None, smooth: float = 0.0) -> np.ndarray:
     """Bounded trust-region least squares of :func:`residual` (or, with ``smooth`` > 0,
     of :class:`SmoothResidual` of that relative width) over the ``free`` unknowns of ``x0``
-    (bounds ``lo``, ``hi``); returns the whole vector. The Jacobian's damping columns are
-    exact, the others forward differences (step 1e-4 in the log units of the factors and
-    the extension's parameters, 0.1 mm for a mount point [m])."""
+    (bounds ``lo``, ``hi``; Jacobian :func:`jacobian`); returns the whole vector."""
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
     free = np.ones(x0.size, bool) if free is None else np.asarray(free, bool)
-    lay = fam.layout
-    slot_cols = np.zeros(x0.size, bool)
-    if not smooth:
-        slot_cols[lay.n_p:lay.n_p + lay.n_slots] = True
-    scale = 1.0 / np.sqrt(2 * (meas.sigma2 + floor**2))
-    residual_of = SmoothResidual(meas, smooth) if smooth else functools.partial(residual, meas, floor=floor)
+    smoothed = SmoothResidual(meas, smooth) if smooth else None
+    residual_of = smoothed or functools.partial(residual, meas, floor=floor)
     bad = np.full(residual_of(meas.H).size, 1e3)
 
     def full(xf):
@@ -73,23 +97,7 @@ def least_squares(fam: Family, x0, lo, hi, meas: MeasuredFRF, max_nfev: int, flo
         return residual_of(H)
 
     def jac(xf):
-        x = full(xf)
-        H, dH = fam.accelerance(x, meas.frequency, zeta_derivatives=True)
-        r0 = residual_of(H) if np.all(np.isfinite(H)) and not np.any(H == 0) else bad
-        cols = []
-        for j in np.flatnonzero(free):
-            if slot_cols[j]:
-                q = dH[j - lay.n_p] / H * scale
-                cols.append(np.concatenate([q.real.ravel(), q.imag.ravel()]))
-                continue
-            h = 1e-4 * max(1.0, abs(x[j]))
-            h = -h if x[j] + h > hi[j] else h
-            xh = x.copy()
-            xh[j] += h
-            Hh = fam.accelerance(xh, meas.frequency)
-            rh = residual_of(Hh) if np.all(np.isfinite(Hh)) and not np.any(Hh == 0) else bad
-            cols.append((rh - r0) / h)
-        return np.column_stack(cols)
+        return jacobian(fam, full(xf), meas, floor, free, hi, smoothed)
 
     res = scipy.optimize.least_squares(fun, x0[free], jac=jac, bounds=(lo[free], hi[free]), method="trf",
                                        max_nfev=max_nfev, x_scale=1.0)

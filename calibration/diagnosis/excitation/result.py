@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ...data.outputs import RESULT_FORMATS
 from ..confidence import Confidence
+from ..limits import Detectability
 from .baseline import SwarmRecord
 from .context import KIND
 from .data import MeasuredFRF
@@ -82,6 +83,7 @@ class ExcitationDiagnosis:
     confidence : the cause's held-out gain with its 95 % interval over the channels and its
         word (None for ``none`` and ``unexplained``)
     intervals : each hypothesis's gain with its interval, by name
+    detectability : each extension's weakest effect this campaign could have named
     """
 
     campaign: str
@@ -101,6 +103,7 @@ class ExcitationDiagnosis:
     wall_s: float
     confidence: Confidence | None = None
     intervals: dict = field(default_factory=dict)
+    detectability: Detectability | None = None
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -121,6 +124,7 @@ class ExcitationDiagnosis:
                                                   {k: v for k, v in self.confidence.to_json().items()
                                                    if k != "gain"})},
             "confidence": None if self.confidence is None else self.confidence.word,
+            "detectability": None if self.detectability is None else self.detectability.to_json(),
             "baseline": self.baseline.to_json(),
             "hypotheses": [{**h.to_json(), **self._interval_json(h.name)} for h in self.hypotheses],
             "split": {"training_runs": list(self.training_runs), "heldout_runs": list(self.heldout_runs),

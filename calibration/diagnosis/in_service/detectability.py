@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...models.car2d import CarExtras
-from ..limits import Z, Detectability, Limit, Magnitude, search
+from ..limits import Z, Detectability, Limit, Magnitude, search, weakest
 from .evidence import DiagnosisData, signal_bands
 from .extensions import EXTENSIONS, FLOOR_DX_M
 from .response import FIT_NAMES, ResponseFit, SensorModel, channel_power, input_noise_power, response_nrp, transfer
@@ -132,17 +132,6 @@ def _carbody_words(data: DiagnosisData) -> str:
             "(above the bogies and at the centre) would see it")
 
 
-def _weakest(mag: Magnitude, found: list) -> int:
-    """Index of the weakest of ``found`` ((limit, strong, observable) per held variant): one
-    not observable, else one not detectable, else the limit nearest the strong end."""
-    def rank(x):
-        limit, _, observable = x
-        if not observable or limit is None:
-            return (0 if not observable else 1, 0.0)
-        return (2, limit if mag.strong < mag.weak else -limit)
-    return min(range(len(found)), key=lambda i: rank(found[i]))
-
-
 def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
     mag = RESPONSE_MAGNITUDES[name]
     per_sensor = EXTENSIONS[name].per_sensor is not None
@@ -160,7 +149,7 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
     else:
         variants, names = (mag.held, *mag.across), [mag.parameter] * (1 + len(mag.across))
     found = [search(mag, judge_at(v, n), bar) for v, n in zip(variants, names)]
-    k = _weakest(mag, found)
+    k = weakest(mag, found)
     limit, strong, observable = found[k]
     stronger = "above" if mag.strong > mag.weak else "below"
     held = ", ".join(f"{key} = {v:g}" for key, v in variants[k].items())

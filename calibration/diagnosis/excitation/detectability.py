@@ -1,0 +1,194 @@
+"""Detectability for the excitation test: for each extension, the weakest effect this
+campaign could have named, so that ``none`` says what it rules out.
+
+Nothing here knows a truth. At the end of a diagnosis every extension has been fitted; its
+model, at its fitted factors and shape, is evaluated with the effect at magnitude theta and
+with the effect absent (an equipment mass of nothing, a divisor of 1, a force gain of 1).
+The difference of the two, in the residual's units (:func:`.least_squares.residual`), is
+what data with that effect would add to the baseline's misfit:
+
+* the baseline's refit absorbs what its own factors and dampings can mimic: the training
+  part's difference is projected on the baseline's Jacobian there, and the same
+  combination of its parameters is taken off the held-out part's difference (a
+  linearised refit);
+* what is left adds its mean square to each held-out channel's error E (per line, the
+  sum of the log-magnitude and the phase terms);
+* a perfect extension removes it again, so the gain it would bring is the addition over
+  the baseline's measured held-out error plus it, summed over the channels as the
+  decision sums them;
+* the gain's scatter is the cross term of the addition with the baseline's measured
+  residual, taken as random with the per-line error as its variance.
+
+An effect is *detectable* at theta when the gain less ``Z`` of its scatter reaches the
+decision's bar (:mod:`calibration.diagnosis.limits`). The effect's other parameters are held
+at the fit's: the equipment where and how its fit mounted it, the softening on the panel
+its fit chose. A force gain within 1 % of 1 is the load cell's tolerance and never named,
+so its limit is at least that.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..limits import Z, Detectability, Limit, Magnitude, search, weakest
+from .context import Context
+from .equipment import MASS_RANGE, SCAN_DAMPING, mount_grid
+from .extensions import EXTENSIONS
+from .fitting import Fitted, factor_bounds
+from .frf import equipment_accelerance, modal_accelerance, normalised_error_lines
+from .least_squares import jacobian, residual
+from .softening import DIVISOR_RANGE
+
+#: a force gain within this of 1 is a load cell's calibration tolerance (never named)
+FORCE_TOLERANCE = 0.01
+#: [Hz] the carbody modes the effects catalogue tunes underfloor equipment to
+EQUIPMENT_BAND = (8.0, 20.0)
+#: each extension's magnitude: the range its fit searches
+MAGNITUDES = {
+    "underfloor_equipment": Magnitude("mass_ratio", "-", MASS_RANGE[0], MASS_RANGE[1]),
+    "local_panel_softening": Magnitude("rigidity_divisor", "-", DIVISOR_RANGE[0], DIVISOR_RANGE[1]),
+    "force_calibration": Magnitude("force_error", "-", 0.0, 0.5, signed=True, log=False),
+}
+_missing = set(EXTENSIONS) - set(MAGNITUDES)
+if _missing:
+    raise ImportError(f"excitation detectability.MAGNITUDES lacks {', '.join(sorted(_missing))}")
+
+
+class Refit:
+    """The baseline's held-out misfit and its linearised refit, formed once.
+
+    J_train, J_test : the baseline's residual Jacobians on the two parts (its factors and
+        dampings); e_lines : (n_f, n_s) its held-out error per line and channel; n_f : lines
+    """
+
+    def __init__(self, J_train: np.ndarray, J_test: np.ndarray, e_lines: np.ndarray):
+        self.J_train, self.J_test, self.e_lines = J_train, J_test, e_lines
+        self.n_f, self.n_s = e_lines.shape
+
+    @classmethod
+    def of(cls, ctx: Context, base: Fitted) -> "Refit":
+        s = ctx.settings
+        _, hi = factor_bounds(ctx, base.layout.n_slots)
+        free = np.ones(base.x.size, bool)
+        J_tr = jacobian(base.family, base.x, ctx.meas, s.floor, free, hi)
+        J_te = jacobian(base.family, base.x, ctx.meas_test, s.floor, free, hi)
+        e = normalised_error_lines(ctx.meas_test, base.accelerance(ctx.meas_test.frequency), s.floor)
+        return cls(J_tr, J_te, e)
+
+    def predict(self, d_train: np.ndarray, d_test: np.ndarray) -> tuple[float, float]:
+        """(gain, its standard deviation) a perfect extension would bring if the data carried
+        an effect that changes the residual by ``d_train`` and ``d_test``."""
+        beta, *_ = np.linalg.lstsq(self.J_train, d_train, rcond=1e-10)
+        left = (d_test - self.J_test @ beta).reshape(2, self.n_f, self.n_s)
+        sq = (left ** 2).sum(axis=0)  # (n_f, n_s)
+        added = sq.sum(axis=0) / self.n_f
+        before = max(float(np.sum(self.e_lines.mean(axis=0) + added)), 1e-300)
+        var = 2.0 * np.sum(sq * self.e_lines, axis=0) / self.n_f ** 2
+        return float(added.sum()) / before, float(np.sqrt(var.sum())) / before
+
+    def judge(self, d_train: np.ndarray, d_test: np.ndarray) -> tuple[float, float]:
+        """(gain less Z of its scatter, the gain over Z of its scatter)."""
+        gain, sigma = self.predict(d_train, d_test)
+        return gain - Z * sigma, gain / max(Z * sigma, 1e-300)
+
+
+def _residual_change(ctx: Context, H_of) -> tuple[np.ndarray, np.ndarray]:
+    """The residual's change on both parts from ``H_of(f) -> (H with the effect, H without)``."""
+    out = []
+    for meas in (ctx.meas, ctx.meas_test):
+        on, off = H_of(meas.frequency)
+        out.append(residual(meas, on, ctx.settings.floor) - residual(meas, off, ctx.settings.floor))
+    return out[0], out[1]
+
+
+def _force(ctx: Context, base: Fitted):
+    """The baseline read through a load cell of gain 1 + theta: every FRF over it."""
+    def change(theta: float):
+        return _residual_change(ctx, lambda f: (base.accelerance(f) / (1 + theta), base.accelerance(f)))
+    return [("either sign", change)]
+
+
+def _equipment(ctx: Context, base: Fitted):
+    """Underfloor equipment on the baseline, one variant per carbody mode in the catalogue's
+    8-20 Hz (the truth's equipment is tuned to one): mounted where the mode moves the floor
+    most (:func:`.equipment.mount_grid`), tuned to it, damping ratio 5 %."""
+    modes, zeta, _, _ = base.family.parts(base.x)
+    points = mount_grid(ctx.model)
+    A = base.family.red.mount_rows(points) @ modes.Y  # (n_points, r)
+    lo, hi = max(EQUIPMENT_BAND[0], ctx.settings.band[0]), min(EQUIPMENT_BAND[1], ctx.settings.band[1])
+    out = []
+    for k in np.flatnonzero(modes.elastic & (modes.frequency_hz >= lo) & (modes.frequency_hz <= hi)):
+        j = int(np.argmax(np.abs(A[:, k])))
+        f_k, a = float(modes.frequency_hz[k]), A[j]
+
+        def change(theta: float, a=a, f_k=f_k):
+            def H_of(f):
+                return (equipment_accelerance(f, modes.omega, zeta, modes.sensor_shapes, modes.exciter_shape, a,
+                                              theta * ctx.carbody_mass, f_k, SCAN_DAMPING),
+                        modal_accelerance(f, modes.omega, zeta, modes.sensor_shapes, modes.exciter_shape))
+            return _residual_change(ctx, H_of)
+        out.append((f"{f_k:.2f} Hz at ({points[j][0]:.1f}, {points[j][1]:.1f}) m", change))
+    return out
+
+
+def _softening(ctx: Context, fit: Fitted):
+    """The softening's fitted model, its panel's divisor theta against 1."""
+    n = fit.layout.n_p + fit.layout.n_slots
+
+    def change(theta: float):
+        on, off = np.r_[fit.x[:n], np.log(theta)], np.r_[fit.x[:n], 0.0]
+        return _residual_change(ctx, lambda f: (fit.family.accelerance(on, f), fit.family.accelerance(off, f)))
+    return [(f"panel {fit.panel}, the one its fit chose", change)]
+
+
+def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
+    """The weakest over ``variants`` ((held values in words, theta -> residual changes)) of
+    the smallest size that clears the bar."""
+    mag, ext = MAGNITUDES[name], EXTENSIONS[name]
+    bar = ctx.settings.min_gain + ctx.settings.penalty * ext.n_params
+    stronger = "above" if mag.strong > mag.weak else "below"
+    if not variants:
+        return Limit(name, mag.parameter, mag.unit, None, False,
+                     f"no carbody mode in {EQUIPMENT_BAND[0]:g}-{EQUIPMENT_BAND[1]:g} Hz inside the FRF band to tune "
+                     "it to", stronger)
+
+    def judge_of(change):
+        def judge(theta: float) -> tuple[float, float]:
+            out = [refit.judge(*change(s * theta)) for s in ((1.0, -1.0) if mag.signed else (1.0,))]
+            return min(o[0] for o in out), min(o[1] for o in out)
+        return judge
+
+    found = [search(mag, judge_of(change), bar) for _, change in variants]
+    k = weakest(mag, found)
+    limit, strong, observable = found[k]
+    held = variants[k][0]
+    if len(variants) > 1:
+        each = "; ".join(f"{w}: {'not detectable' if x[0] is None else f'{x[0]:.3g}'}"
+                         for (w, _), x in zip(variants, found))
+        held = f"the weakest of {each}"
+    span = f"{min(mag.weak, mag.strong):g}-{max(mag.weak, mag.strong):g}"
+    if not observable:
+        return Limit(name, mag.parameter, mag.unit, None, False,
+                     f"not observable: even at {mag.strong:g} ({held}) it changes no channel beyond the scatter",
+                     stronger)
+    if limit is None:
+        return Limit(name, mag.parameter, mag.unit, None, True,
+                     f"not detectable within its range {span} ({held}): at {mag.strong:g} the predicted held-out "
+                     f"gain less its scatter is {strong:.0%}, under the bar of {bar:.0%}", stronger)
+    tolerance = ""
+    if name == "force_calibration" and limit < FORCE_TOLERANCE:
+        limit, tolerance = FORCE_TOLERANCE, "; smaller errors are within a load cell's tolerance and not named"
+    what = f"|{mag.parameter}|" if mag.signed else mag.parameter
+    side = "and above" if stronger == "above" else "and below"
+    return Limit(name, mag.parameter, mag.unit, limit, True,
+                 f"{what} {limit:.3g} {side} ({held}) would gain {bar:.0%} on the held-out FRFs after the "
+                 f"baseline's refit absorbs what it can{tolerance}", stronger)
+
+
+def detectability(ctx: Context, base: Fitted, fits: dict[str, Fitted]) -> Detectability:
+    """Each extension's detectable limit on this campaign, from the baseline ``base`` and the
+    extensions' fits ``fits`` (see the module's description)."""
+    refit = Refit.of(ctx, base)
+    variants = {"underfloor_equipment": _equipment(ctx, base),
+                "local_panel_softening": _softening(ctx, fits["local_panel_softening"]),
+                "force_calibration": _force(ctx, base)}
+    return Detectability(tuple(_limit(ctx, name, variants[name], refit) for name in EXTENSIONS))
