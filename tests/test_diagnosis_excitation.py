@@ -20,7 +20,9 @@ from calibration.data.errors import InputError
 from calibration.diagnosis.excitation import EXTENSIONS, ExcitationDiagnosisSettings, diagnose_excitation
 from calibration.diagnosis.excitation.basis import Operators, ReducedFRFModel, Stiffness
 from calibration.diagnosis.excitation.decision import Hypothesis, confidences, misfit_alarms
+from calibration.diagnosis.excitation.data import MeasuredFRF
 from calibration.diagnosis.excitation.detectability import Refit
+from calibration.diagnosis.excitation.least_squares import jacobian, residual
 from calibration.diagnosis.excitation.evidence import UnpairedMode
 from calibration.diagnosis.excitation.family import Family, Layout, Slots
 from calibration.diagnosis.excitation.frf import equipment_accelerance, modal_accelerance
@@ -166,6 +168,34 @@ def test_a_force_gain_divides_every_frf_and_its_damping_derivatives_by_the_gain(
     assert slots.n > 3 and np.abs(dH).max() > 0
     np.testing.assert_allclose(Hg, H / 1.07, rtol=1e-12)
     np.testing.assert_allclose(dHg, dH / 1.07, rtol=1e-12, atol=1e-15 * np.abs(dH).max())
+
+
+def test_the_residuals_jacobian_is_its_derivative(model, ops):
+    """The least squares' and detectability's Jacobian of the weighted log residual: its
+    exact damping columns and its differenced factor and force-gain columns against
+    central differences of the residual."""
+    params = draw_truth_parameters(SETTINGS, np.random.default_rng(4))
+    p = np.array([params[n] for n in model.names])
+    s = ExcitationDiagnosisSettings()
+    red = ReducedFRFModel.build(ops, Stiffness(p), n_modes=40, n_deriv=s.derivative_modes, extra=s.basis_extra,
+                                below_hz=s.basis_hz)
+    slots = Slots.at(red, red.modes(p), s.band)
+    fam = Family.make(red, slots, Layout(p.size, slots.n, "force"), 0.02)
+    x = np.concatenate([np.log(p), np.log(np.linspace(0.01, 0.04, slots.n)), [np.log(0.97)]])
+    f = np.linspace(6.0, 30.0, 120)
+    H = fam.accelerance(x, f)
+    H = H * np.exp(0.01 * np.random.default_rng(1).standard_normal(H.shape))
+    meas = MeasuredFRF(f, H, np.full(H.shape, 1e-4), 40)
+    free = np.ones(x.size, bool)
+    J = jacobian(fam, x, meas, s.floor, free, np.full(x.size, np.inf))
+    for j in (0, p.size // 2, p.size, p.size + slots.n - 1, x.size - 1):
+        h = 1e-6
+        up, down = x.copy(), x.copy()
+        up[j] += h
+        down[j] -= h
+        central = (residual(meas, fam.accelerance(up, f), s.floor) - residual(meas, fam.accelerance(down, f), s.floor)) \
+            / (2 * h)
+        np.testing.assert_allclose(J[:, j], central, rtol=2e-3, atol=2e-3 * np.abs(central).max())
 
 
 def test_a_force_calibration_campaign_is_the_effect_free_one_with_its_force_column_scaled(tmp_path, model):
