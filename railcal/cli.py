@@ -170,7 +170,7 @@ def cmd_diagnose(args) -> int:
     if not args.quiet:  # the evidence in full; the summary line stays one line
         for line in diagnosis.summary:
             print(f"  {line}", file=sys.stderr)
-    sure = getattr(diagnosis, "confidence", None)  # the in-service diagnosis's; the excitation test's has none yet
+    sure = diagnosis.confidence
     print(f"cause: {diagnosis.cause}{f' (confidence {sure})' if sure else ''}; wrote {names(out_path, *plots)}")
     return EXIT_OK
 

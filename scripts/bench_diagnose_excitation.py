@@ -83,7 +83,7 @@ def _case(case: dict) -> dict:
     return {**case, "cause": result.cause, "hidden": hidden,
             "found": dict(ext.parameters) if ext else None,
             "gain": ext.gain if ext else None,
-            "confidence": None if result.confidence is None else result.confidence.to_json(),
+            "confidence": None if result.certainty is None else result.certainty.to_json(),
             "hypotheses": {h.name: round(h.gain, 4) for h in result.hypotheses},
             "baseline_heldout_error": result.evidence.heldout_error_mean,
             "unpaired_modes": [{"hz": round(r.identified_hz, 3), "mac": round(r.mac, 3),

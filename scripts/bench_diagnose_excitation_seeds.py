@@ -67,8 +67,8 @@ def _case(case: dict) -> dict:
     return {**case, "cause": result.cause, "expected": expected, "right": result.cause == expected,
             "gain": result.extension.gain if result.extension else None, "panel": eff.get("panel"),
             "found": dict(result.extension.parameters) if result.extension else None,
-            "confidence": None if result.confidence is None else
-            f"{result.confidence.word}, {result.confidence.interval_words().strip(' ()')}",
+            "confidence": None if result.certainty is None else
+            f"{result.certainty.word}, {result.certainty.interval_words().strip(' ()')}",
             "hypotheses": {h.name: round(h.gain, 3) for h in result.hypotheses},
             "baseline_heldout_error": result.evidence.heldout_error_mean, "wall_s": wall}
 

@@ -57,6 +57,7 @@ class Limit:
     stronger: str  # "above" or "below": which side of the limit is the stronger effect
     # the sensors it would take (e.g. "carbody sensors"), when this set cannot name it at any size
     needs: str | None = None
+    signed: bool = False  # the limit is on the magnitude of a quantity of either sign
 
     def to_json(self) -> dict:
         return {"parameter": self.parameter, "unit": self.unit, "detectable_beyond": self.detectable_beyond,
@@ -70,7 +71,9 @@ class Limit:
         if self.detectable_beyond is None:
             return f"{self.name}: not detectable within its range"
         op = ">=" if self.stronger == "above" else "<="
-        return f"{self.name} {self.parameter} {op} {self.detectable_beyond:.3g} {self.unit}"
+        what = f"|{self.parameter}|" if self.signed else self.parameter
+        unit = "" if self.unit == "-" else f" {self.unit}"
+        return f"{self.name} {what} {op} {self.detectable_beyond:.3g}{unit}"
 
 
 @dataclass(frozen=True)

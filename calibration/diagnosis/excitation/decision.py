@@ -22,7 +22,7 @@ from ..confidence import Confidence, from_units
 from ..limits import Detectability
 from .context import Context
 from .evidence import ChannelLeftOut, Evidence, HeldOut, UnpairedMode, confined_channel, heldout
-from .extensions import ExcitationExtension
+from .extensions import EXTENSIONS, ExcitationExtension
 from .fitting import Fitted
 from .settings import ExcitationDiagnosisSettings
 
@@ -182,6 +182,13 @@ def misfit_alarms(heldout_error: Mapping[str, float], unpaired: Sequence[Unpaire
     return alarms, notes
 
 
+def _null_words(name: str) -> str:
+    """Where extension ``name``'s effect vanishes or its search ends, in words."""
+    ext = EXTENSIONS[name]
+    parameter, value = ext.null_end
+    return f"{parameter} within {ext.null_tol:.0%} of {value:g}"
+
+
 def _values(parameters: dict, fmt: str) -> str:
     return ", ".join(f"{k} = {v:{fmt}}" if isinstance(v, float) else f"{k} = {v}" for k, v in parameters.items())
 
@@ -214,7 +221,7 @@ def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes:
         return "" if c is None or c.interval is None else f" ({c.interval[0]:.0%} to {c.interval[1]:.0%})"
     out.append("hypotheses by held-out gain (95 % interval over the channels): " + ", ".join(
         f"{h.name} {h.gain:.0%}{spread(h)}" for h in sorted(hypotheses, key=lambda h: -h.penalised_gain)))
-    out += [f"{h.name} not named: its fit ends within 1 % of where the effect vanishes ("
+    out += [f"{h.name} not named: its fit ends at its null end ({_null_words(h.name)}; "
             + _values(h.parameters, ".3g") + "); its gain comes from re-adjusting the baseline"
             for h in hypotheses if h.at_null_end and h.gain > 0]
     if evidence.parameters_at_bounds:

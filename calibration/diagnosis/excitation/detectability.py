@@ -16,8 +16,10 @@ what data with that effect would add to the baseline's misfit:
 * a perfect extension removes it again, so the gain it would bring is the addition over
   the baseline's measured held-out error plus it, summed over the channels as the
   decision sums them;
-* the gain's scatter is the cross term of the addition with the baseline's measured
-  residual, taken as random with the per-line error as its variance.
+* the gain's scatter comes from the cross term of the addition with the baseline's
+  residual and from the residual's own power, both taken as random with the per-line error
+  as the residual's variance (a noise residual's per-line error is a scaled chi-square of
+  two degrees of freedom).
 
 An effect is *detectable* at theta when the gain less ``Z`` of its scatter reaches the
 decision's bar (:mod:`calibration.diagnosis.limits`). The effect's other parameters are held
@@ -35,11 +37,9 @@ from .equipment import MASS_RANGE, SCAN_DAMPING, mount_grid
 from .extensions import EXTENSIONS
 from .fitting import Fitted, factor_bounds
 from .frf import equipment_accelerance, modal_accelerance, normalised_error_lines
-from .least_squares import jacobian, residual
+from .least_squares import jacobian
 from .softening import DIVISOR_RANGE
 
-#: a force gain within this of 1 is a load cell's calibration tolerance (never named)
-FORCE_TOLERANCE = 0.01
 #: [Hz] the carbody modes the effects catalogue tunes underfloor equipment to
 EQUIPMENT_BAND = (8.0, 20.0)
 #: each extension's magnitude: the range its fit searches
@@ -80,10 +80,14 @@ class Refit:
         beta, *_ = np.linalg.lstsq(self.J_train, d_train, rcond=1e-10)
         left = (d_test - self.J_test @ beta).reshape(2, self.n_f, self.n_s)
         sq = (left ** 2).sum(axis=0)  # (n_f, n_s)
-        added = sq.sum(axis=0) / self.n_f
-        before = max(float(np.sum(self.e_lines.mean(axis=0) + added)), 1e-300)
-        var = 2.0 * np.sum(sq * self.e_lines, axis=0) / self.n_f ** 2
-        return float(added.sum()) / before, float(np.sqrt(var.sum())) / before
+        added = float(sq.sum()) / self.n_f
+        before = max(float(self.e_lines.sum()) / self.n_f + added, 1e-300)
+        gain = added / before
+        # the gain A / (E + A) moves with the cross term C of the addition with the residual
+        # (by (1 - gain) / before) and with the residual's own power E (by -gain / before)
+        var_cross = 2.0 * float(np.sum(sq * self.e_lines)) / self.n_f ** 2
+        var_power = float(np.sum(self.e_lines ** 2)) / self.n_f ** 2
+        return gain, float(np.sqrt((1 - gain) ** 2 * var_cross + gain ** 2 * var_power)) / before
 
     def judge(self, d_train: np.ndarray, d_test: np.ndarray) -> tuple[float, float]:
         """(gain less Z of its scatter, the gain over Z of its scatter)."""
@@ -92,11 +96,14 @@ class Refit:
 
 
 def _residual_change(ctx: Context, H_of) -> tuple[np.ndarray, np.ndarray]:
-    """The residual's change on both parts from ``H_of(f) -> (H with the effect, H without)``."""
+    """The residual's change on both parts from ``H_of(f) -> (H with the effect, H without)``:
+    the weighted log of their ratio (the difference of two residuals would wrap where the
+    baseline's phase misfit is near pi)."""
     out = []
     for meas in (ctx.meas, ctx.meas_test):
         on, off = H_of(meas.frequency)
-        out.append(residual(meas, on, ctx.settings.floor) - residual(meas, off, ctx.settings.floor))
+        q = np.log(on / off) / np.sqrt(2 * (meas.sigma2 + ctx.settings.floor ** 2))
+        out.append(np.concatenate([q.real.ravel(), q.imag.ravel()]))
     return out[0], out[1]
 
 
@@ -175,13 +182,14 @@ def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
                      f"not detectable within its range {span} ({held}): at {mag.strong:g} the predicted held-out "
                      f"gain less its scatter is {strong:.0%}, under the bar of {bar:.0%}", stronger)
     tolerance = ""
-    if name == "force_calibration" and limit < FORCE_TOLERANCE:
-        limit, tolerance = FORCE_TOLERANCE, "; smaller errors are within a load cell's tolerance and not named"
+    never = float(np.expm1(ext.null_tol))  # a gain within its tolerance (in log, either side) is never named
+    if ext.null_end is not None and ext.null_end[1] == 1.0 and limit < never:
+        limit, tolerance = never, "; smaller errors are within a load cell's tolerance and not named"
     what = f"|{mag.parameter}|" if mag.signed else mag.parameter
     side = "and above" if stronger == "above" else "and below"
     return Limit(name, mag.parameter, mag.unit, limit, True,
                  f"{what} {limit:.3g} {side} ({held}) would gain {bar:.0%} on the held-out FRFs after the "
-                 f"baseline's refit absorbs what it can{tolerance}", stronger)
+                 f"baseline's refit absorbs what it can{tolerance}", stronger, signed=mag.signed)
 
 
 def detectability(ctx: Context, base: Fitted, fits: dict[str, Fitted]) -> Detectability:

@@ -19,9 +19,9 @@ class ExcitationExtension:
     parameters : what is fitted (counted for the complexity penalty)
     fit : (context, baseline fit) -> list of fits, best first
     null_end : (parameter, value) where the effect vanishes: the edge of its search (a
-        softening divisor), or 1 for a gain. A fit that ends within 1 % of it gains by
-        adjusting the baseline, not by the effect, and is not named as the cause; for the
-        force gain that 1 % is a load cell's calibration tolerance
+        softening divisor), or 1 for a gain. A fit that ends within ``null_tol`` of it (in
+        log) gains by adjusting the baseline, not by the effect, and is not named as the
+        cause; for the force gain that 1 % is a load cell's calibration tolerance
     """
 
     name: str
@@ -29,13 +29,14 @@ class ExcitationExtension:
     parameters: tuple[str, ...]
     fit: Callable
     null_end: tuple[str, float] | None = None
+    null_tol: float = 0.01
 
-    def at_null_end(self, parameters: dict, tol: float = 0.01) -> bool:
-        """Whether the fitted ``parameters`` end within ``tol`` (log) of :attr:`null_end`."""
+    def at_null_end(self, parameters: dict) -> bool:
+        """Whether the fitted ``parameters`` end within :attr:`null_tol` (log) of :attr:`null_end`."""
         if self.null_end is None:
             return False
-        name, bound = self.null_end
-        return bool(abs(np.log(float(parameters[name]) / bound)) <= tol)
+        name, value = self.null_end
+        return bool(abs(np.log(float(parameters[name]) / value)) <= self.null_tol)
 
     @property
     def n_params(self) -> int:

@@ -80,7 +80,7 @@ class ExcitationDiagnosis:
     training_runs, heldout_runs : the split, as run labels
     basis_modes : full-model modes every reduced basis kept; model_dof : the full model's DOFs
     wall_s : [s] wall time of the diagnosis
-    confidence : the cause's held-out gain with its 95 % interval over the channels and its
+    certainty : the cause's held-out gain with its 95 % interval over the channels and its
         word (None for ``none`` and ``unexplained``)
     intervals : each hypothesis's gain with its interval, by name
     detectability : each extension's weakest effect this campaign could have named
@@ -101,13 +101,19 @@ class ExcitationDiagnosis:
     basis_modes: int
     model_dof: int
     wall_s: float
-    confidence: Confidence | None = None
+    certainty: Confidence | None = None
     intervals: dict = field(default_factory=dict)
     detectability: Detectability | None = None
 
     @property
     def sensors(self) -> tuple[str, ...]:
         return self.evidence.sensors
+
+    @property
+    def confidence(self) -> str | None:
+        """The cause's confidence word (``high``, ``moderate``, ``low``); None for ``none``
+        and ``unexplained``."""
+        return None if self.certainty is None else self.certainty.word
 
     def to_json(self) -> dict:
         """The diagnosis file's content (``railcal-diagnosis/1``), without the figures' paths."""
@@ -120,10 +126,10 @@ class ExcitationDiagnosis:
                 "model": {"model": "box", "parameters": dict(best.factors), best.name: dict(best.parameters)}},
             "gain": None if best is None else {"heldout_error": best.heldout_error_json(),
                                                "best_channel": best.best_channel, "reduction": best.gain,
-                                               **({} if self.confidence is None else
-                                                  {k: v for k, v in self.confidence.to_json().items()
+                                               **({} if self.certainty is None else
+                                                  {k: v for k, v in self.certainty.to_json().items()
                                                    if k != "gain"})},
-            "confidence": None if self.confidence is None else self.confidence.word,
+            "confidence": self.confidence,
             "detectability": None if self.detectability is None else self.detectability.to_json(),
             "baseline": self.baseline.to_json(),
             "hypotheses": [{**h.to_json(), **self._interval_json(h.name)} for h in self.hypotheses],

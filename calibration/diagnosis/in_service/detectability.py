@@ -179,7 +179,8 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
         what = f"|{mag.parameter}|" if mag.signed else mag.parameter
         why = (f"{what} {limit:.3g} {mag.unit} {side}{held} would "
                f"gain {bar:.0%} on held-out data after the baseline's refit absorbs what it can")
-    return Limit(name, mag.parameter, mag.unit, limit if observable else None, observable, why, stronger)
+    return Limit(name, mag.parameter, mag.unit, limit if observable else None, observable, why, stronger,
+                 signed=mag.signed)
 
 
 def _wheel_limit(data: DiagnosisData, bar: float) -> Limit:
