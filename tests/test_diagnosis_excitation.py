@@ -150,15 +150,20 @@ def test_reduced_model_reproduces_the_truths_accelerance(model, ops):
 
 
 # ------------------------------------------------------------------------ force calibration
-def test_a_force_gain_divides_every_frf_and_its_damping_derivatives_by_the_gain(model, ops):
-    """The force sensor reading g x the applied force: the model's accelerance and its exact
-    derivatives with respect to the modal dampings are the plain model's over g."""
-    params = draw_truth_parameters(SETTINGS, np.random.default_rng(9))
+def _reduced(model, ops, seed: int):
+    """(factors drawn as the truth draws them, the reduced model there, its damping slots)."""
+    params = draw_truth_parameters(SETTINGS, np.random.default_rng(seed))
     p = np.array([params[n] for n in model.names])
     s = ExcitationDiagnosisSettings()
     red = ReducedFRFModel.build(ops, Stiffness(p), n_modes=40, n_deriv=s.derivative_modes, extra=s.basis_extra,
                                 below_hz=s.basis_hz)
-    slots = Slots.at(red, red.modes(p), s.band)
+    return p, red, Slots.at(red, red.modes(p), s.band)
+
+
+def test_a_force_gain_divides_every_frf_and_its_damping_derivatives_by_the_gain(model, ops):
+    """The force sensor reading g x the applied force: the model's accelerance and its exact
+    derivatives with respect to the modal dampings are the plain model's over g."""
+    p, red, slots = _reduced(model, ops, 9)
     z = np.log(np.full(slots.n, 0.02))
     f = np.linspace(6.0, 30.0, 200)
     plain = Family.make(red, slots, Layout(p.size, slots.n), 0.02)
@@ -174,12 +179,8 @@ def test_the_residuals_jacobian_is_its_derivative(model, ops):
     """The least squares' and detectability's Jacobian of the weighted log residual: its
     exact damping columns and its differenced factor and force-gain columns against
     central differences of the residual."""
-    params = draw_truth_parameters(SETTINGS, np.random.default_rng(4))
-    p = np.array([params[n] for n in model.names])
+    p, red, slots = _reduced(model, ops, 4)
     s = ExcitationDiagnosisSettings()
-    red = ReducedFRFModel.build(ops, Stiffness(p), n_modes=40, n_deriv=s.derivative_modes, extra=s.basis_extra,
-                                below_hz=s.basis_hz)
-    slots = Slots.at(red, red.modes(p), s.band)
     fam = Family.make(red, slots, Layout(p.size, slots.n, "force"), 0.02)
     x = np.concatenate([np.log(p), np.log(np.linspace(0.01, 0.04, slots.n)), [np.log(0.97)]])
     f = np.linspace(6.0, 30.0, 120)
