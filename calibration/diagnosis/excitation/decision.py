@@ -121,7 +121,7 @@ def confidences(hypotheses: Sequence[Hypothesis], best: Hypothesis | None,
     taken over, and which points of the floor were instrumented is a choice the gain should
     not hang on."""
     s = settings
-    bar = {h.name: s.min_gain + s.penalty * h.n_params for h in hypotheses}
+    bar = {h.name: s.bar(h.n_params) for h in hypotheses}
     intervals = {h.name: from_units(h.before, h.after, bar[h.name], [], "channels") for h in hypotheses}
     if best is None:
         return None, intervals

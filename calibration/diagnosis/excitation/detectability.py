@@ -151,7 +151,7 @@ def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
     """The weakest over ``variants`` ((held values in words, theta -> residual changes)) of
     the smallest size that clears the bar."""
     mag, ext = MAGNITUDES[name], EXTENSIONS[name]
-    bar = ctx.settings.min_gain + ctx.settings.penalty * ext.n_params
+    bar = ctx.settings.bar(ext.n_params)
     stronger = "above" if mag.strong > mag.weak else "below"
     if not variants:
         return Limit(name, mag.parameter, mag.unit, None, False,

@@ -68,6 +68,11 @@ class ExcitationDiagnosisSettings:
     mode_band: float = 0.03
     one_channel: float = 0.5
 
+    def bar(self, n_params: int) -> float:
+        """The held-out gain an extension of ``n_params`` parameters must clear: ``min_gain``
+        plus ``penalty`` per parameter (as the in-service settings')."""
+        return self.min_gain + self.penalty * n_params
+
     def __post_init__(self):
         name = type(self).__name__
         for key, kind in (("identify", ExcitationIdentifySettings), ("pso", PSOSettings)):
