@@ -457,7 +457,7 @@ def diagnosed(tmp_path_factory, model):
     return truth, diagnose_excitation(open_campaign(root), model=model, settings=FAST)
 
 
-def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_at_it(diagnosed, tmp_path):
+def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_at_it(diagnosed, tmp_path, model):
     """A sensor on a resilient bracket (no extension for it): `unexplained`, with every
     hypothesis's penalised gain under the bar, the evidence naming the one channel, and
     the other channels explained once it is left out; the plots and the JSON written."""
@@ -492,6 +492,8 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     detect = data["detectability"]  # what this campaign could have named, each extension on its own scale
     assert set(detect) == set(EXTENSIONS) and all(d["observable"] for d in detect.values()), detect
     assert detect["force_calibration"]["detectable_beyond"] >= 0.01  # a load cell's tolerance is never named
+    soft = detect["local_panel_softening"]["why"]  # the softening may sit on any panel: the weakest counts
+    assert all(f"panel {pn.name}:" in soft for pn in model.vehicle.panels), soft
     for h in data["hypotheses"]:  # every runner-up with its gain's interval over the held-out channels
         lo, hi = h["interval_95"]
         assert h["heldout_channels"] == len(SENSOR_GRID) and lo <= h["gain"] <= hi, h

@@ -3,7 +3,7 @@ FRFs of both parts, the full model's operators and the factors' bounds."""
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -48,6 +48,9 @@ class Context:
     factors: FactorSet | None  # the factor set the model was assembled from (None: a model given as such)
     start: np.ndarray | None = None  # a calibration's factors, where the baseline starts instead of a swarm
     start_fit_pct: float | None = None  # that calibration's largest modal frequency error [%]
+    #: reduced models one stage builds and a later one reuses (e.g. the softening's per-panel
+    #: bases, which the detectability evaluates again), keyed by what they were built at
+    memo: dict = field(default_factory=dict, repr=False)
 
     @property
     def log_factors(self) -> bool:

@@ -1,9 +1,9 @@
 """Detectability for the excitation test: for each extension, the weakest effect this
 campaign could have named, so that ``none`` says what it rules out.
 
-Nothing here knows a truth. At the end of a diagnosis every extension has been fitted; its
-model, at its fitted factors and shape, is evaluated with the effect at magnitude theta and
-with the effect absent (an equipment mass of nothing, a divisor of 1, a force gain of 1).
+Nothing here knows a truth. At the end of a diagnosis each extension's model, at the
+baseline's factors and dampings, is evaluated with the effect at magnitude theta and with
+the effect absent (an equipment mass of nothing, a divisor of 1, a force gain of 1).
 The difference of the two, in the residual's units (:func:`.least_squares.residual`), is
 what data with that effect would add to the baseline's misfit:
 
@@ -22,10 +22,11 @@ what data with that effect would add to the baseline's misfit:
   two degrees of freedom).
 
 An effect is *detectable* at theta when the gain less ``Z`` of its scatter reaches the
-decision's bar (:mod:`calibration.diagnosis.limits`). The effect's other parameters are held
-at the fit's: the equipment where and how its fit mounted it, the softening on the panel
-its fit chose. A force gain within 1 % of 1 is the load cell's tolerance and never named,
-so its limit is at least that.
+decision's bar (:mod:`calibration.diagnosis.limits`). The effect's other parameters are
+varied over what the catalogue may hide, and the weakest counts: the equipment tuned to
+each carbody mode in 8-20 Hz where that mode moves the floor most, the softening on each
+panel. A force gain within 1 % of 1 is the load cell's tolerance and never named, so its
+limit is at least that.
 """
 from __future__ import annotations
 
@@ -38,7 +39,7 @@ from .extensions import EXTENSIONS
 from .fitting import Fitted, factor_bounds
 from .frf import equipment_accelerance, modal_accelerance, normalised_error_lines
 from .least_squares import jacobian
-from .softening import DIVISOR_RANGE
+from .softening import DIVISOR_RANGE, panel_family
 
 #: [Hz] the carbody modes the effects catalogue tunes underfloor equipment to
 EQUIPMENT_BAND = (8.0, 20.0)
@@ -137,14 +138,22 @@ def _equipment(ctx: Context, base: Fitted):
     return out
 
 
-def _softening(ctx: Context, fit: Fitted):
-    """The softening's fitted model, its panel's divisor theta against 1."""
-    n = fit.layout.n_p + fit.layout.n_slots
+def _softening(ctx: Context, base: Fitted):
+    """Each panel of the carbody softened on the baseline (the truth's softening may sit on
+    any): the softening's model of that panel (:func:`.softening.panel_family`, the scan's
+    where the baseline was not re-fitted since) at the baseline's factors and dampings, its
+    divisor theta against 1."""
+    p_b, z_b, _ = base.layout.split(base.x)
+    head = np.r_[np.log(p_b), np.log(z_b)]
+    out = []
+    for panel in (pn.name for pn in ctx.model.vehicle.panels):
+        fam = panel_family(ctx, base, panel)
 
-    def change(theta: float):
-        on, off = np.r_[fit.x[:n], np.log(theta)], np.r_[fit.x[:n], 0.0]
-        return _residual_change(ctx, lambda f: (fit.family.accelerance(on, f), fit.family.accelerance(off, f)))
-    return [(f"panel {fit.panel}, the one its fit chose", change)]
+        def change(theta: float, fam=fam):
+            return _residual_change(ctx, lambda f: (fam.accelerance(np.r_[head, np.log(theta)], f),
+                                                    fam.accelerance(np.r_[head, 0.0], f)))
+        out.append((f"panel {panel}", change))
+    return out
 
 
 def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
@@ -192,11 +201,11 @@ def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
                  f"baseline's refit absorbs what it can{tolerance}", stronger, signed=mag.signed)
 
 
-def detectability(ctx: Context, base: Fitted, fits: dict[str, Fitted]) -> Detectability:
-    """Each extension's detectable limit on this campaign, from the baseline ``base`` and the
-    extensions' fits ``fits`` (see the module's description)."""
+def detectability(ctx: Context, base: Fitted) -> Detectability:
+    """Each extension's detectable limit on this campaign, from the baseline ``base`` (see
+    the module's description)."""
     refit = Refit.of(ctx, base)
     variants = {"underfloor_equipment": _equipment(ctx, base),
-                "local_panel_softening": _softening(ctx, fits["local_panel_softening"]),
+                "local_panel_softening": _softening(ctx, base),
                 "force_calibration": _force(ctx, base)}
     return Detectability(tuple(_limit(ctx, name, variants[name], refit) for name in EXTENSIONS))

@@ -102,7 +102,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
                                   local=evidence.local_resonances)
     cause, best = name_cause(hypotheses, alarms, s)
     confidence, intervals = confidences(hypotheses, best, s)
-    detect = detectability(ctx, base, fits)
+    detect = detectability(ctx, base)
     summary = tuple(summary_lines(cause, best, alarms, notes, evidence, hypotheses, confidence, intervals,
                                   detect)) \
         + (_ranges_words(campaign.meta.priors, ctx),)

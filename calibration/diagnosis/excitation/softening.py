@@ -100,6 +100,25 @@ def panel_swarm(ctx: Context, panel: str) -> PanelSwarm:
     return PanelSwarm(panel, cal.pso["best_full_pct"], p, divisors, own)
 
 
+def panel_family(ctx: Context, base: Fitted, panel: str, extra_points: tuple[Stiffness, ...] = ()) -> Family:
+    """The softening of ``panel`` on the baseline ``base``'s factors and damping slots: one
+    basis at the panel divided by 4 that also holds the modes at 1.5 and 12 and at
+    ``extra_points``. Kept in ``ctx.memo`` per panel and baseline, so that the
+    detectability evaluates the model the scan did (where the baseline was not re-fitted
+    since, it gets the scan's basis, extra points included)."""
+    s = ctx.settings
+    p_b = base.layout.split(base.x)[0]
+    key = ("softening", panel, p_b.tobytes(), base.family.slots.hz0.tobytes())
+    if key not in ctx.memo:
+        red = ReducedFRFModel.build(ctx.ops, Stiffness(p_b, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
+                                    extra=s.basis_extra + 60, below_hz=s.basis_hz,
+                                    extra_points=(Stiffness(p_b, panel, 1.5), Stiffness(p_b, panel, 12.0),
+                                                  *extra_points))
+        ctx.memo[key] = Family.make(red, base.family.slots, Layout(len(p_b), base.family.slots.n, "softening"),
+                                    ctx.default_zeta)
+    return ctx.memo[key]
+
+
 def _scan(ctx: Context, base: Fitted) -> tuple[list[tuple], list[PanelSwarm]]:
     """(training error, panel, divisor, factors, factor set) of every panel x divisor of
     :data:`DIVISOR_SCAN` at three factor sets (``"baseline"``, ``"nominal"``, ``"swarm"``:
@@ -116,13 +135,8 @@ def _scan(ctx: Context, base: Fitted) -> tuple[list[tuple], list[PanelSwarm]]:
         d_sw = float(np.exp(np.mean(np.log(found)))) if found else 4.0
         # the scan's basis spans every factor set it is evaluated at (the baseline's may be
         # far from nominal, e.g. a softened roof pushes the roof factors to their bound)
-        red = ReducedFRFModel.build(ctx.ops, Stiffness(p_b, panel, 4.0), n_modes=ctx.n_modes, n_deriv=0,
-                                    extra=s.basis_extra + 60, below_hz=s.basis_hz,
-                                    extra_points=(Stiffness(p_b, panel, 1.5), Stiffness(p_b, panel, 12.0),
-                                                  Stiffness(p_nom, panel, 4.0),
-                                                  Stiffness(sw.factors_at(ctx, d_sw), panel, d_sw)))
-        lay = Layout(len(p_b), base.family.slots.n, "softening")
-        fam = Family.make(red, base.family.slots, lay, ctx.default_zeta)
+        fam = panel_family(ctx, base, panel, (Stiffness(p_nom, panel, 4.0),
+                                              Stiffness(sw.factors_at(ctx, d_sw), panel, d_sw)))
         for which, factors, divisors in (("baseline", lambda d: p_b, DIVISOR_SCAN),
                                          ("nominal", lambda d: p_nom, DIVISOR_SCAN),
                                          ("swarm", functools.partial(sw.factors_at, ctx),
