@@ -23,7 +23,7 @@ from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, sensor_operator
 from .models.box.rig import point_record
-from .models.box.shinkansen import GROUPED_RANGE, WINDOWED, side_end_zone_of
+from .models.box.shinkansen import GROUPED_RANGE, ZONED, side_end_zone_of
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -373,14 +373,14 @@ def _overlap(a, b) -> bool:
 
 
 def campaign_factor_set(name: str | None, campaign: Campaign) -> FactorSet:
-    """The factor set ``name`` (None: grouped) for ``campaign``: the windowed set's end strips
-    beyond the side walls' windowed middle, from its [vehicle] windowed_length (InputError
-    naming the key without it); ValueError for an unknown set."""
+    """The factor set ``name`` (None: grouped) for ``campaign``: the windowed and orthotropic
+    sets' end strips beyond the side walls' windowed middle, from its [vehicle]
+    windowed_length (InputError naming the key without it); ValueError for an unknown set."""
     zone = None
-    if name == WINDOWED:
+    if name in ZONED:
         windows = campaign.meta.geometry.get("windowed_length")
         if windows is None:
-            raise InputError("the windowed factor set needs the length of the side walls' windowed middle: "
+            raise InputError(f"the {name} factor set needs the length of the side walls' windowed middle: "
                              "[vehicle] windowed_length = METRES", path=campaign.root / "campaign.toml",
                              key="vehicle.windowed_length")
         zone = side_end_zone_of(windows)

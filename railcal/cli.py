@@ -323,8 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--refine", action="store_true",
                    help="constrained refinement (CasADi/IPOPT) after the search")
     s.add_argument("--factors", default=None, metavar="SET",
-                   help="box model: the factor set searched, grouped, credible or windowed (credible and the "
-                        "side walls' shear beyond their windows; a campaign's [vehicle] windowed_length) (default: "
+                   help="box model: the factor set searched, grouped, credible, windowed (credible and the "
+                        "side walls' shear beyond their windows; a campaign's [vehicle] windowed_length) or "
+                        "orthotropic (windowed, and the roof's, floor's and sides' rigidity across apart) (default: "
                         "credible with --targets, grouped with a campaign); a campaign's [priors] must name "
                         "factors of the set, and a factor without one is searched over the set's own range")
     s.add_argument("--seed", type=_seed, default=0, help="seed of the search")

@@ -8,6 +8,7 @@ import shutil
 from types import SimpleNamespace
 
 import numpy as np
+import scipy.linalg
 import pytest
 from conftest import COARSE_BOX_ORDERS
 from threadpoolctl import threadpool_limits
@@ -419,7 +420,8 @@ def test_a_staged_factor_set_swarms_on_its_first_factors_and_polishes_them_all(m
                       ({"factor_set": "credible", "parameters": {"roof_membrane": 1.0}}, "roof_membrane"),
                       ({"parameters": {"side_shear": float("nan")}}, "positive"),
                       ({"factor_set": "windowed", "parameters": {}}, "side_end_zone_m.*goes with"),
-                      ({"factor_set": "credible", "side_end_zone_m": 5.0, "parameters": {}}, "only with it"),
+                      ({"factor_set": "credible", "side_end_zone_m": 5.0, "parameters": {}}, "only with them"),
+                      ({"factor_set": "orthotropic", "parameters": {}}, "side_end_zone_m.*goes with"),
                       ({"factor_set": "windowed", "side_end_zone_m": 13.0, "parameters": {}}, r"in \(0, 12.25\)"),
                       ({"factor_set": "windowed", "side_end_zone_m": float("nan"), "parameters": {}}, "a length"),
                       ({"factor_set": "windowed", "side_end_zone_m": "5", "parameters": {}}, "a length")):
@@ -463,6 +465,42 @@ def test_the_windowed_set_adds_the_side_walls_end_strips_and_its_file_rebuilds_t
     block = model.dof_slices["side_left"]
     assert np.allclose(K[block, block], side.rigidity["A66"] * strips)
     assert np.allclose(model.K_units["side_shear"].toarray()[block, block], side.rigidity["A66"] * (whole - strips))
+
+
+def test_the_orthotropic_set_splits_the_rigidity_across_off_and_stays_positive_definite_over_its_ranges():
+    """The orthotropic set: the windowed set with the roof's, floor's and sides' rigidity
+    across (D22, A22) a factor of its own. At unit factors it is the windowed model; at the
+    corner of its ranges that is most lopsided (lengthwise at the top, across at the bottom)
+    every plate's constitutive matrix and the vehicle's stiffness stay positive definite."""
+    from calibration.models.box import assemble
+    from calibration.models.box.shinkansen import (ACROSS_RANGE, ACROSS_SPLITS, MATERIAL, calibrated_box_model,
+                                                   factor_set, shinkansen_vehicle, side_end_zone_of)
+
+    zone = side_end_zone_of(14.0)
+    win, fs = factor_set("windowed", side_end_zone=zone), factor_set("orthotropic", side_end_zone=zone)
+    across = {f"{name}_across" for name, _, _ in ACROSS_SPLITS}
+    assert set(fs.names) == set(win.names) | across and fs.polish_only == win.polish_only
+    assert all(q.name not in across for q in fs.parameters[len(fs.parameters) - fs.polish_only:])  # swarmed
+    for name, along, term in ACROSS_SPLITS:  # every rigidity of the windowed factor in exactly one of the two
+        q, a = fs.parameters[fs.names.index(name)], fs.parameters[fs.names.index(f"{name}_across")]
+        whole = win.parameters[win.names.index(name)]
+        assert sorted(q.terms + a.terms) == sorted(whole.terms) and a.terms == (term,) and q.terms == along
+        top = fs.ranges[fs.names.index(name)][1]
+        rig = MATERIAL[q.group][0]
+        xx, yy, xy = ("D11", "D22", "D12") if term == "D22" else ("A11", "A22", "A12")
+        C = np.array([[top * rig[xx], top * rig[xy]], [top * rig[xy], ACROSS_RANGE[0] * rig[yy]]])
+        assert np.linalg.eigvalsh(C).min() > 0, (name, C)
+    vehicle = shinkansen_vehicle(parameters=fs.parameters, order_increase=COARSE_BOX_ORDERS)
+    ortho = assemble(vehicle)
+    windowed = assemble(shinkansen_vehicle(parameters=win.parameters, order_increase=COARSE_BOX_ORDERS))
+    K1, K0 = ortho.stiffness(np.ones(len(fs.names))), windowed.stiffness(np.ones(len(win.names)))
+    assert abs(K1 - K0).max() <= 1e-9 * abs(K0).max()
+    corner = np.array([ACROSS_RANGE[0] if n in across else r[1] if any(n == s for s, _, _ in ACROSS_SPLITS) else 1.0
+                       for n, r in zip(fs.names, fs.ranges)])
+    scipy.linalg.cholesky(ortho.stiffness(corner).toarray())  # raises if not positive definite
+    rebuilt, p = calibrated_box_model({"factor_set": "orthotropic", "side_end_zone_m": zone,
+                                       "parameters": {"floor_bending_across": 3.0}})
+    assert rebuilt.names == fs.names and p["floor_bending_across"] == 3.0 and p["floor_bending"] == 1.0
 
 
 @pytest.mark.slow

@@ -219,19 +219,55 @@ def windowed_factor_set(side_end_zone: float) -> FactorSet:
                                 + POLISH_JOINT_FACTORS, len(POLISH_JOINT_FACTORS))
 
 
+#: The orthotropic set: the windowed set with the cross-direction rigidity of the roof, the
+#: floor and the sides a factor of its own. MATERIAL's ratios of cross-direction to lengthwise
+#: rigidity are guesses (an extrusion's ribs, cross beams and the roof's curvature set them),
+#: and one factor on all four rigidities of a group keeps the guess.
+ORTHOTROPIC = "orthotropic"
+#: The cross-direction factors' range, stated before any fit: an order of magnitude stiffer
+#: (cross beams, ribs across) down to 0.4, where the coupling term nu sqrt(D11 D22), which
+#: stays with the lengthwise factor, keeps every plate positive definite over both ranges
+#: (it needs across / along > nu^2 = 0.09; the lengthwise ranges' tops are 4 and 2)
+ACROSS_RANGE = (0.4, 10.0)
+#: The split: (a windowed factor, its lengthwise and coupling terms, its cross-direction term)
+ACROSS_SPLITS = tuple((f"{g}_{kind}", along, across) for g in ("roof", "floor", "side")
+                      for kind, along, across in (("bending", ("D11", "D12", "D66"), "D22"),
+                                                  ("normal", ("A11", "A12"), "A22")))
+ZONED = (WINDOWED, ORTHOTROPIC)
+
+
+def orthotropic_factor_set(side_end_zone: float) -> FactorSet:
+    """The windowed set (:func:`windowed_factor_set`) with each factor of
+    :data:`ACROSS_SPLITS` split: the named factor keeps the lengthwise and coupling
+    rigidities, ``<factor>_across`` takes the cross-direction one, in :data:`ACROSS_RANGE`."""
+    ws = windowed_factor_set(side_end_zone)
+    split = {name: (along, across) for name, along, across in ACROSS_SPLITS}
+    pairs = []
+    for q, r in zip(ws.parameters, ws.ranges):
+        if q.name not in split:
+            pairs.append((q, r))
+            continue
+        along, across = split[q.name]
+        pairs.append((replace(q, terms=along, description=f"{q.description}, lengthwise and coupling"), r))
+        pairs.append((StiffnessParameter(f"{q.name}_across", "panel", q.group, (across,),
+                                         f"{q.description}, across"), ACROSS_RANGE))
+    return FactorSet.from_pairs(ORTHOTROPIC, pairs, ws.polish_only)
+
+
 def factor_set(name: str | None, side_end_zone: float | None = None) -> FactorSet:
     """The factor set ``name`` (None: the grouped default, as calibration files written
-    before factor sets existed); the windowed set with its ``side_end_zone`` [m]. ValueError
-    naming the known sets otherwise, or for a windowed set without its zone."""
-    if name == WINDOWED:
+    before factor sets existed); the windowed and orthotropic sets with their
+    ``side_end_zone`` [m]. ValueError naming the known sets otherwise, or for a zoned set
+    without its zone."""
+    if name in ZONED:
         if side_end_zone is None:
-            raise ValueError("the windowed factor set needs the length of the side walls' end strips "
+            raise ValueError(f"the {name} factor set needs the length of the side walls' end strips "
                              "(a campaign's [vehicle] windowed_length)")
-        return windowed_factor_set(side_end_zone)
+        return windowed_factor_set(side_end_zone) if name == WINDOWED else orthotropic_factor_set(side_end_zone)
     try:
         return FACTOR_SETS[DEFAULT_FACTOR_SET if name is None else name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown box factor set {name!r}; known: {', '.join(FACTOR_SETS)}, {WINDOWED}") from None
+        raise ValueError(f"unknown box factor set {name!r}; known: {', '.join((*FACTOR_SETS, *ZONED))}") from None
 
 
 def side_end_zone_of(windowed_length: float, geometry: Geometry = Geometry()) -> float:
@@ -334,9 +370,9 @@ def calibrated_box_model(calibration: dict):
     nominal. InputError for an unknown set or factor, a factor that is not a positive
     number, or an ``order_change`` that is not an integer."""
     name, zone = calibration.get("factor_set"), calibration.get("side_end_zone_m")
-    if (zone is None) != (name != WINDOWED):
-        raise InputError(f"'side_end_zone_m' goes with factor_set {WINDOWED!r} and only with it (factor_set "
-                         f"{name!r}, side_end_zone_m {zone!r})", key="side_end_zone_m")
+    if (zone is None) != (name not in ZONED):
+        raise InputError(f"'side_end_zone_m' goes with factor_set {' or '.join(map(repr, ZONED))} and only with them "
+                         f"(factor_set {name!r}, side_end_zone_m {zone!r})", key="side_end_zone_m")
     try:
         factors = factor_set(name, side_end_zone=zone)
     except InputError:  # the end strips' length, named by its own key
