@@ -28,7 +28,7 @@ swarm. Expected before its first run on these seeds (written after development s
 within 0.5 % on each seed, every MAC at least 0.95.
 
     OPENBLAS_NUM_THREADS=1 python scripts/check_excitation_independent.py [--seeds 3] [--keep DIR]
-        [--factors grouped|credible|windowed]
+        [--factors grouped|credible|windowed|orthotropic]
 """
 from __future__ import annotations
 
@@ -94,7 +94,7 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--keep", type=Path, help="keep the campaigns in this folder (and reuse those there)")
-    ap.add_argument("--factors", choices=("grouped", "credible", "windowed"), default="grouped")
+    ap.add_argument("--factors", choices=("grouped", "credible", "windowed", "orthotropic"), default="grouped")
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

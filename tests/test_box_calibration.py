@@ -479,13 +479,15 @@ def test_the_orthotropic_set_splits_the_rigidity_across_off_and_stays_positive_d
     zone = side_end_zone_of(14.0)
     win, fs = factor_set("windowed", side_end_zone=zone), factor_set("orthotropic", side_end_zone=zone)
     across = {f"{name}_across" for name, _, _ in ACROSS_SPLITS}
-    assert set(fs.names) == set(win.names) | across and fs.polish_only == win.polish_only
+    along = {f"{name}_along" for name, _, _ in ACROSS_SPLITS}
+    assert set(fs.names) == (set(win.names) - {n for n, _, _ in ACROSS_SPLITS}) | along | across
+    assert fs.polish_only == win.polish_only
     assert all(q.name not in across for q in fs.parameters[len(fs.parameters) - fs.polish_only:])  # swarmed
     for name, along, term in ACROSS_SPLITS:  # every rigidity of the windowed factor in exactly one of the two
-        q, a = fs.parameters[fs.names.index(name)], fs.parameters[fs.names.index(f"{name}_across")]
+        q, a = fs.parameters[fs.names.index(f"{name}_along")], fs.parameters[fs.names.index(f"{name}_across")]
         whole = win.parameters[win.names.index(name)]
         assert sorted(q.terms + a.terms) == sorted(whole.terms) and a.terms == (term,) and q.terms == along
-        top = fs.ranges[fs.names.index(name)][1]
+        top = fs.ranges[fs.names.index(f"{name}_along")][1]
         rig = MATERIAL[q.group][0]
         xx, yy, xy = ("D11", "D22", "D12") if term == "D22" else ("A11", "A22", "A12")
         C = np.array([[top * rig[xx], top * rig[xy]], [top * rig[xy], ACROSS_RANGE[0] * rig[yy]]])
@@ -495,12 +497,12 @@ def test_the_orthotropic_set_splits_the_rigidity_across_off_and_stays_positive_d
     windowed = assemble(shinkansen_vehicle(parameters=win.parameters, order_increase=COARSE_BOX_ORDERS))
     K1, K0 = ortho.stiffness(np.ones(len(fs.names))), windowed.stiffness(np.ones(len(win.names)))
     assert abs(K1 - K0).max() <= 1e-9 * abs(K0).max()
-    corner = np.array([ACROSS_RANGE[0] if n in across else r[1] if any(n == s for s, _, _ in ACROSS_SPLITS) else 1.0
+    corner = np.array([ACROSS_RANGE[0] if n in across else r[1] if n in along else 1.0
                        for n, r in zip(fs.names, fs.ranges)])
     scipy.linalg.cholesky(ortho.stiffness(corner).toarray())  # raises if not positive definite
     rebuilt, p = calibrated_box_model({"factor_set": "orthotropic", "side_end_zone_m": zone,
                                        "parameters": {"floor_bending_across": 3.0}})
-    assert rebuilt.names == fs.names and p["floor_bending_across"] == 3.0 and p["floor_bending"] == 1.0
+    assert rebuilt.names == fs.names and p["floor_bending_across"] == 3.0 and p["floor_bending_along"] == 1.0
 
 
 @pytest.mark.slow

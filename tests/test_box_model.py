@@ -293,9 +293,11 @@ def test_every_factor_set_is_the_nominal_vehicle_at_nominal_factors_and_names_on
     stiffness is the same; a name shared by two sets scales the same rigidities in both; each
     set's range holds the nominal."""
     from calibration.models.box import FACTOR_SETS
+    from calibration.models.box.shinkansen import ZONED, factor_set
 
+    sets = [*FACTOR_SETS.values(), *(factor_set(name, side_end_zone=5.0) for name in ZONED)]
     stiffness = {}
-    for fs in FACTOR_SETS.values():
+    for fs in sets:
         assert len(set(fs.names)) == len(fs.names) == len(fs.ranges)
         assert all(lo < 1.0 < hi for lo, hi in fs.ranges)
         m = assemble(shinkansen_vehicle(order_increase=-4, parameters=fs.parameters))
@@ -304,7 +306,7 @@ def test_every_factor_set_is_the_nominal_vehicle_at_nominal_factors_and_names_on
     for K in rest:
         np.testing.assert_allclose(K, first, rtol=0, atol=1e-12 * np.abs(first).max())
     meaning = {}
-    for fs in FACTOR_SETS.values():
+    for fs in sets:
         for q in fs.parameters:
             what = (q.kind, q.group, set(q.terms), q.end_zone)
             assert meaning.setdefault(q.name, what) == what, q.name
@@ -317,5 +319,7 @@ def test_the_credible_set_frees_the_end_and_floor_joints_only_in_the_polish():
     assert len(fs.names) == 18 and fs.polish_only == 4
     assert {q.group for q in fs.parameters[-4:]} == {"end", "floor_floor"}
     assert factor_set(None).name == "grouped"
-    with pytest.raises(ValueError, match="known: grouped, credible"):
+    with pytest.raises(ValueError, match="known: grouped, credible, windowed, orthotropic"):
+        factor_set("nonesuch")
+    with pytest.raises(ValueError, match="orthotropic factor set needs the length"):
         factor_set("orthotropic")

@@ -492,8 +492,9 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     detect = data["detectability"]  # what this campaign could have named, each extension on its own scale
     assert set(detect) == set(EXTENSIONS) and all(d["observable"] for d in detect.values()), detect
     assert detect["force_calibration"]["detectable_beyond"] >= 0.01  # a load cell's tolerance is never named
-    soft = detect["local_panel_softening"]["why"]  # the softening may sit on any panel: the weakest counts
-    assert all(f"panel {pn.name}:" in soft for pn in model.vehicle.panels), soft
+    soft = detect["local_panel_softening"]["why"]  # each panel the catalogue softens: the weakest counts
+    assert all((f"panel {pn.name}" in soft) == (pn.group in ("roof", "floor")) for pn in model.vehicle.panels), soft
+    assert "panel roof (its own factors absorb a divisor up to" in soft  # the roof's softening is its factors / it
     for h in data["hypotheses"]:  # every runner-up with its gain's interval over the held-out channels
         lo, hi = h["interval_95"]
         assert h["heldout_channels"] == len(SENSOR_GRID) and lo <= h["gain"] <= hi, h

@@ -25,8 +25,8 @@ An effect is *detectable* at theta when the gain less ``Z`` of its scatter reach
 decision's bar (:mod:`calibration.diagnosis.limits`). The effect's other parameters are
 varied over what the catalogue may hide, and the weakest counts: the equipment tuned to
 each carbody mode in 8-20 Hz where that mode moves the floor most, the softening on each
-panel. A force gain within 1 % of 1 is the load cell's tolerance and never named, so its
-limit is at least that.
+panel the catalogue softens (the roof and the floor panels). A force gain within 1 % of 1
+is the load cell's tolerance and never named, so its limit is at least that.
 """
 from __future__ import annotations
 
@@ -138,21 +138,41 @@ def _equipment(ctx: Context, base: Fitted):
     return out
 
 
+#: the panel groups the effects catalogue softens (the roof, or one of the three floor
+#: panels: docs/methods/truth-simulator.md); the extension searches every panel, but what
+#: ``none`` rules out is said for the catalogue's effect
+SOFTENING_GROUPS = ("roof", "floor")
+
+
 def _softening(ctx: Context, base: Fitted):
-    """Each panel of the carbody softened on the baseline (the truth's softening may sit on
-    any): the softening's model of that panel (:func:`.softening.panel_family`, the scan's
-    where the baseline was not re-fitted since) at the baseline's factors and dampings, its
-    divisor theta against 1."""
+    """Each panel the catalogue may soften, softened on the baseline: the softening's model of
+    that panel (:func:`.softening.panel_family`, the scan's where the baseline was not
+    re-fitted since) at the baseline's factors and dampings, its divisor theta against 1. A
+    panel whose every rigidity is scaled by factors of its own (the roof) softened by theta
+    is those factors over theta: the refit absorbs it until the first of them reaches its
+    lower bound (theta_0 = min p / low), so what is left is taken as the softening by theta /
+    theta_0 (the linearised refit cannot follow a shift that large)."""
     p_b, z_b, _ = base.layout.split(base.x)
     head = np.r_[np.log(p_b), np.log(z_b)]
     out = []
-    for panel in (pn.name for pn in ctx.model.vehicle.panels):
-        fam = panel_family(ctx, base, panel)
+    for pn in ctx.model.vehicle.panels:
+        if pn.group not in SOFTENING_GROUPS:
+            continue
+        fam = panel_family(ctx, base, pn.name)
+        own = ctx.ops.own_group_factors(pn.name)
+        _, Kp = ctx.ops.panel_stiffness(pn.name)
+        absorbed = 1.0
+        if own and set(Kp) == set(own):
+            i = [ctx.names.index(n) for n in own]
+            absorbed = max(1.0, float(np.min(p_b[i] / ctx.low[i])))
 
-        def change(theta: float, fam=fam):
-            return _residual_change(ctx, lambda f: (fam.accelerance(np.r_[head, np.log(theta)], f),
+        def change(theta: float, fam=fam, absorbed=absorbed):
+            left = max(theta / absorbed, 1.0)
+            return _residual_change(ctx, lambda f: (fam.accelerance(np.r_[head, np.log(left)], f),
                                                     fam.accelerance(np.r_[head, 0.0], f)))
-        out.append((f"panel {panel}", change))
+        words = f"panel {pn.name}" + ("" if absorbed == 1.0 else
+                                      f" (its own factors absorb a divisor up to {absorbed:.3g})")
+        out.append((words, change))
     return out
 
 

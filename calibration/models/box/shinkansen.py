@@ -238,8 +238,9 @@ ZONED = (WINDOWED, ORTHOTROPIC)
 
 def orthotropic_factor_set(side_end_zone: float) -> FactorSet:
     """The windowed set (:func:`windowed_factor_set`) with each factor of
-    :data:`ACROSS_SPLITS` split: the named factor keeps the lengthwise and coupling
-    rigidities, ``<factor>_across`` takes the cross-direction one, in :data:`ACROSS_RANGE`."""
+    :data:`ACROSS_SPLITS` split in two: ``<factor>_along`` takes the lengthwise and coupling
+    rigidities in the factor's range, ``<factor>_across`` the cross-direction one in
+    :data:`ACROSS_RANGE` (a name means the same rigidities in every set)."""
     ws = windowed_factor_set(side_end_zone)
     split = {name: (along, across) for name, along, across in ACROSS_SPLITS}
     pairs = []
@@ -248,7 +249,8 @@ def orthotropic_factor_set(side_end_zone: float) -> FactorSet:
             pairs.append((q, r))
             continue
         along, across = split[q.name]
-        pairs.append((replace(q, terms=along, description=f"{q.description}, lengthwise and coupling"), r))
+        pairs.append((replace(q, name=f"{q.name}_along", terms=along,
+                              description=f"{q.description}, lengthwise and coupling"), r))
         pairs.append((StiffnessParameter(f"{q.name}_across", "panel", q.group, (across,),
                                          f"{q.description}, across"), ACROSS_RANGE))
     return FactorSet.from_pairs(ORTHOTROPIC, pairs, ws.polish_only)
