@@ -226,8 +226,9 @@ def windowed_factor_set(side_end_zone: float) -> FactorSet:
 ORTHOTROPIC = "orthotropic"
 #: The cross-direction factors' range, stated before any fit: an order of magnitude stiffer
 #: (cross beams, ribs across) down to 0.4, where the coupling term nu sqrt(D11 D22), which
-#: stays with the lengthwise factor, keeps every plate positive definite over both ranges
-#: (it needs across / along > nu^2 = 0.09; the lengthwise ranges' tops are 4 and 2)
+#: stays with the lengthwise factor, keeps every plate positive definite over the set's
+#: ranges (it needs across / along > nu^2 = 0.09; the lengthwise ranges' tops are 4 and 2).
+#: Wider ranges (a campaign's priors) are not checked for it yet.
 ACROSS_RANGE = (0.4, 10.0)
 #: The split: (a windowed factor, its lengthwise and coupling terms, its cross-direction term)
 ACROSS_SPLITS = tuple((f"{g}_{kind}", along, across) for g in ("roof", "floor", "side")
