@@ -8,8 +8,8 @@ import shutil
 from types import SimpleNamespace
 
 import numpy as np
-import scipy.linalg
 import pytest
+import scipy.linalg
 from conftest import COARSE_BOX_ORDERS
 from threadpoolctl import threadpool_limits
 
