@@ -23,7 +23,7 @@ from .box_refine import polish_box, refine_box
 from .models.box import FactorSet, assemble, factor_set, shinkansen_vehicle
 from .models.box.fit import MIN_CARBODY_SHARE, BoxFit, ModeTarget, sensor_operator
 from .models.box.rig import point_record
-from .models.box.shinkansen import GROUPED_RANGE, ZONED, side_end_zone_of
+from .models.box.shinkansen import GROUPED_RANGE, ZONED, indefinite_plates, side_end_zone_of
 from .optimisers.base import SearchParameter, bounds
 from .optimisers.identifiability import identifiability
 from .optimisers.pso import PSOSettings, particle_swarm
@@ -92,6 +92,11 @@ def box_search(priors=None, names=None, factors: FactorSet | None = None) -> tup
             raise InputError(f"a box factor is positive: priors.{n}.low must be above 0, got {lo:g}",
                              key=f"priors.{n}.low")
         out.append(SearchParameter(n, nom, 0.3 * nom, lo, hi, 0.01 * nom))
+    indefinite = indefinite_plates({q.name: q.low for q in out}, {q.name: q.high for q in out})
+    if indefinite:
+        raise InputError("the ranges reach a plate that is not positive definite, where the stiffness has no "
+                         "meaning: " + "; ".join(indefinite) + "; raise the cross-direction factor's low or lower "
+                         "the lengthwise one's high", key="priors")
     return tuple(out)
 
 

@@ -5,6 +5,7 @@ A coarse box model (every panel order - 4) keeps the file fast."""
 import json
 import re
 import shutil
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -436,6 +437,50 @@ def test_a_box_factors_prior_must_stay_above_zero():
 
     with pytest.raises(InputError, match=r"priors\.roof_shear\.low.*above 0"):
         box_search({"roof_shear": Prior(1.0, 0.0, 2.0)}, factors=factor_set("credible"))
+
+
+def test_ranges_or_factors_that_reach_an_indefinite_plate_are_refused_and_the_panel_swarm_stays_clear_of_them():
+    """A cross-direction factor over its lengthwise partner must stay above nu^2 (with a
+    margin): a campaign's priors that reach below it anywhere in their box, and a calibration
+    file's factors at it, are refused naming both factors; the shaker diagnosis's panel
+    swarm, whose lows are divided for softening, has its cross-direction lows raised
+    instead, and then every corner of its box is positive definite."""
+    from calibration.data.campaign import Prior
+    from calibration.data.errors import InputError
+    from calibration.diagnosis.excitation.softening import definite
+    from calibration.models.box.shinkansen import (DEFINITE_MARGIN, MATERIAL, across_limits, calibrated_box_model,
+                                                   factor_set, indefinite_plates)
+
+    nu = 0.3
+    assert all(abs(r - nu**2) < 1e-12 for _, r in across_limits().values())  # MATERIAL's coupling: nu sqrt(x11 x22)
+    fs = factor_set("orthotropic", side_end_zone=5.0)
+    own = box_search(factors=fs)  # the set's own ranges pass
+    assert not indefinite_plates({q.name: q.low for q in own}, {q.name: q.high for q in own})
+    with pytest.raises(InputError, match=r"roof_bending_across 0\.2 over roof_bending_along 4") as err:
+        box_search({"roof_bending_across": Prior(1.0, 0.2, 10.0)}, factors=fs)
+    assert err.value.key == "priors"
+    box_search({"roof_bending_across": Prior(1.0, 0.2, 10.0), "roof_bending_along": Prior(1.0, 0.5, 1.5)}, factors=fs)
+    with pytest.raises(InputError, match="floor_normal_across") as err:
+        calibrated_box_model({"factor_set": "orthotropic", "side_end_zone_m": 5.0,
+                              "parameters": {"floor_normal_along": 3.0, "floor_normal_across": 0.25}})
+    assert err.value.key == "parameters"
+
+    soft = tuple(replace(q, low=q.low / 30) for q in own)  # every low divided, as the panel swarm's own factors
+    soft += tuple(replace(q, name=f"{q.name}@floor_rear", low=q.low / 30) for q in own if q.name.startswith("floor"))
+    assert indefinite_plates({q.name: q.low for q in soft}, {q.name: q.high for q in soft})
+    fixed = definite(soft)
+    assert not indefinite_plates({q.name: q.low for q in fixed}, {q.name: q.high for q in fixed})
+    changed = {q.name for q, r in zip(soft, fixed) if q.low != r.low}
+    assert changed and all(n.partition("@")[0] in across_limits() for n in changed)  # the lengthwise lows stay down
+    for q in fixed:  # the most lopsided corner of each plate, by its constitutive matrix
+        base, at, suffix = q.name.partition("@")
+        if base not in across_limits():
+            continue
+        along = next(r for r in fixed if r.name == across_limits()[base][0] + at + suffix)
+        rig = MATERIAL[base.split("_")[0]][0]
+        xx, yy, xy = ("D11", "D22", "D12") if "bending" in base else ("A11", "A22", "A12")
+        C = np.array([[along.high * rig[xx], along.high * rig[xy]], [along.high * rig[xy], q.low * rig[yy]]])
+        assert np.linalg.eigvalsh(C).min() > 0.0 and q.low / along.high > DEFINITE_MARGIN * nu**2
 
 
 def test_the_windowed_set_adds_the_side_walls_end_strips_and_its_file_rebuilds_them():

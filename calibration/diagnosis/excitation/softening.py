@@ -15,6 +15,8 @@ import numpy as np
 
 from ...calibrate_box import RefineSettings, SwarmSettings, calibrate_box, targets_from_identification
 from ...models.box import BoxModel
+from ...models.box.shinkansen import DEFINITE_MARGIN, across_limits
+from ...optimisers.base import SearchParameter
 from .basis import Operators, ReducedFRFModel, Stiffness
 from .context import Context
 from .family import Family, Layout
@@ -76,6 +78,23 @@ class PanelSwarm:
         return p
 
 
+def definite(search: tuple[SearchParameter, ...]) -> tuple[SearchParameter, ...]:
+    """``search`` with each cross-direction factor's low raised where its lengthwise partner's
+    high would make the plate indefinite (:func:`.shinkansen.across_limits`): the panel
+    swarm's lows, divided for softening, would reach it in the orthotropic set. A softening
+    divides all of a panel's rigidities alike, so their ratio needs no such room."""
+    high = {q.name: q.high for q in search}
+    limits = across_limits()
+
+    def floor(q: SearchParameter) -> float:
+        base, at, suffix = q.name.partition("@")
+        if base not in limits:
+            return q.low
+        along, ratio = limits[base]
+        return max(q.low, DEFINITE_MARGIN * 1.01 * ratio * high[along + at + suffix])
+    return tuple(replace(q, low=floor(q), mean=max(q.mean, floor(q))) for q in search)
+
+
 def panel_swarm(ctx: Context, panel: str) -> PanelSwarm:
     """The seed's particle swarm on the identified modes (as the baseline's,
     :func:`calibrate_box`) with ``panel``'s rigidities searched on their own
@@ -86,8 +105,8 @@ def panel_swarm(ctx: Context, panel: str) -> PanelSwarm:
     own = ctx.ops.own_group_factors(panel)
     prior = ctx.search
     soft = DIVISOR_RANGE[1]
-    search = tuple(replace(q, low=q.low / soft) if q.name in own else q for q in prior) + tuple(
-        replace(q, name=f"{q.name}@{panel}", low=q.low / soft) for q in prior if q.name in copies)
+    search = definite(tuple(replace(q, low=q.low / soft) if q.name in own else q for q in prior) + tuple(
+        replace(q, name=f"{q.name}@{panel}", low=q.low / soft) for q in prior if q.name in copies))
     sensors = tuple(ctx.campaign.meta.sensor(n) for n in ctx.sensors)
     cal = calibrate_box(targets_from_identification(ctx.ident), sensors, search,
                         swarm=SwarmSettings(pso=s.pso, seed=s.seed, log_factors=ctx.log_factors),

@@ -24,6 +24,7 @@ bending rigidity of roof, floor and sides, the ends together, and the joint spri
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -227,14 +228,48 @@ ORTHOTROPIC = "orthotropic"
 #: The cross-direction factors' range, stated before any fit: an order of magnitude stiffer
 #: (cross beams, ribs across) down to 0.4, where the coupling term nu sqrt(D11 D22), which
 #: stays with the lengthwise factor, keeps every plate positive definite over the set's
-#: ranges (it needs across / along > nu^2 = 0.09; the lengthwise ranges' tops are 4 and 2).
-#: Wider ranges (a campaign's priors) are not checked for it yet.
+#: ranges (:func:`indefinite_plates`; the lengthwise ranges' tops are 4 and 2).
 ACROSS_RANGE = (0.4, 10.0)
 #: The split: (a windowed factor, its lengthwise and coupling terms, its cross-direction term)
 ACROSS_SPLITS = tuple((f"{g}_{kind}", along, across) for g in ("roof", "floor", "side")
                       for kind, along, across in (("bending", ("D11", "D12", "D66"), "D22"),
                                                   ("normal", ("A11", "A12"), "A22")))
 ZONED = (WINDOWED, ORTHOTROPIC)
+#: How far above its limit (:func:`across_limits`) a cross-direction factor over its lengthwise
+#: one must stay: the set's own ranges keep 1.11 (0.4 / 4 over 0.09), and at the limit itself
+#: the plate's stiffness has a zero energy direction.
+DEFINITE_MARGIN = 1.1
+
+
+@functools.cache
+def across_limits() -> dict[str, tuple[str, float]]:
+    """{``<factor>_across``: (``<factor>_along``, the ratio across / along at which the plate
+    turns indefinite)}: with ``along`` on x11 and x12 and ``across`` on x22 the plate needs
+    across / along > x12^2 / (x11 x22) (nu^2 for MATERIAL's plates)."""
+    out = {}
+    for name, along, across in ACROSS_SPLITS:
+        rig = MATERIAL[name.split("_")[0]][0]
+        xx, xy = along[0], along[1]
+        out[f"{name}_across"] = (f"{name}_along", rig[xy] ** 2 / (rig[xx] * rig[across]))
+    return out
+
+
+def indefinite_plates(low: dict[str, float], high: dict[str, float], margin: float = DEFINITE_MARGIN) -> list[str]:
+    """Where factor ranges (``low``, ``high``: {name: value}; a point if equal) reach a plate
+    that is not safely positive definite (:data:`DEFINITE_MARGIN`): for each split pair both
+    name, the pair with the lowest across over the highest along, in words. Names may carry a
+    suffix (``@panel``, a panel's own copy)."""
+    out = []
+    for name, lo in low.items():
+        base, at, suffix = name.partition("@")
+        if base not in across_limits():
+            continue
+        along, ratio = across_limits()[base]
+        top = high.get(along + at + suffix)
+        if top is not None and not lo > margin * ratio * top:
+            out.append(f"{name} {lo:g} over {along + at + suffix} {top:g} is {lo / top:.3g}, at or below "
+                       f"{margin:g} x {ratio:.3g} (where the plate's stiffness loses definiteness)")
+    return out
 
 
 def orthotropic_factor_set(side_end_zone: float) -> FactorSet:
@@ -398,5 +433,10 @@ def calibrated_box_model(calibration: dict):
     if isinstance(order_change, bool) or not isinstance(order_change, int) or order_change < lowest:
         raise InputError(f"'order_change' must be an integer >= {lowest} (every panel order >= 1), got "
                          f"{order_change!r}", key="order_change")
+    values = {n: float(params.get(n, 1.0)) for n in factors.names}
+    indefinite = indefinite_plates(values, values)
+    if indefinite:
+        raise InputError("box parameters give a plate that is not positive definite: " + "; ".join(indefinite),
+                         key="parameters")
     model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
-    return model, {n: float(params.get(n, 1.0)) for n in model.names}
+    return model, {n: values[n] for n in model.names}
