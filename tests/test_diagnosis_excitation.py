@@ -401,6 +401,22 @@ def test_the_baseline_searches_a_chosen_factor_set_within_its_ranges(tmp_path, m
     with pytest.raises(ValueError, match="not the model's"):
         build_context(open_campaign(root), FAST, model, lambda msg: None, factors=fs)
 
+    # the FRF fit never answers above where it started, whatever its rebuilt bases do
+    from calibration.diagnosis.excitation.fitting import basis_at, factor_bounds, fit
+    from calibration.diagnosis.excitation.least_squares import total_error
+
+    x_p = np.log(np.full(len(grouped.names), 1.6))  # a start well off the truth's factors
+    red = basis_at(grouped, Layout(len(x_p), 0), x_p, None)
+    slots = Slots.at(red, red.modes(np.exp(x_p)), FAST.band)
+    layout, (lo, hi) = Layout(len(x_p), slots.n), factor_bounds(grouped, slots.n)
+    x0 = np.concatenate([x_p, np.full(slots.n, np.log(grouped.default_zeta))])
+    start = total_error(Family.make(red, slots, layout, grouped.default_zeta), x0, grouped.meas, FAST.floor)
+    for rounds in (1, 2):
+        fitted = fit(grouped, "baseline", layout, slots, x0, lo, hi, red=red, rounds=rounds)
+        assert fitted.train_error <= start and np.isfinite(fitted.train_error)
+        f_lo, f_hi = factor_bounds(grouped, fitted.layout.n_slots)
+        assert np.all(fitted.x >= f_lo - 1e-12) and np.all(fitted.x <= f_hi + 1e-12)
+
 
 def test_a_panels_split_is_the_assemblys_with_end_strips_too():
     """The diagnosis splits a panel's stiffness by factor as the assembly does, a side wall's

@@ -84,29 +84,34 @@ def fit(ctx: Context, name: str, layout: Layout, slots: Slots, x0, lo, hi, *, pa
     """Least squares on the training FRFs in rounds, the basis rebuilt and the damping
     slots re-taken at each round's answer (every elastic mode in the band gets a slot,
     keeping the damping it had), until the unknowns move less than ``tol`` (log units) or
-    ``rounds`` are done. ``quick``: one short round with the dampings held (to rank
-    candidate starts)."""
+    ``rounds`` are done. The answer is the lowest training error of the start (if within
+    the bounds) and the rounds, each on its own basis: a rebuilt basis can make a round end
+    above the last (a fit nested on the baseline once ended above it). ``quick``: one short
+    round with the dampings held (to rank candidate starts)."""
     s = ctx.settings
     x = np.asarray(x0, float)
     red = basis_at(ctx, layout, x, panel) if red is None else red
+    fam = Family.make(red, slots, layout, ctx.default_zeta)
+    inside = bool(np.all((x >= lo) & (x <= hi)))  # a start outside the bounds is no answer
+    best = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor) if inside else np.inf, panel)
     for _ in range(1 if quick else rounds):
         free = np.ones(x.size, bool)
         if quick:
             free[layout.n_p:layout.n_p + layout.n_slots] = False
-        fam = Family.make(red, slots, layout, ctx.default_zeta)
         x_new = least_squares(fam, x, lo, hi, ctx.meas, s.refine_iterations // 3 if quick else s.refine_iterations,
                               s.floor, free)
         moved = float(np.max(np.abs(x_new - x)))
         x = x_new
-        if quick:
+        if not quick:
+            modes, zeta, _, _ = fam.parts(x)
+            red = basis_at(ctx, layout, x, panel)
+            slots, layout, x, lo, hi = retake_slots(ctx, fam, modes, zeta, layout, x, lo, hi)
+        fam = Family.make(red, slots, layout, ctx.default_zeta)
+        now = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor), panel)
+        best = now if now.train_error < best.train_error else best
+        if quick or moved < tol:
             break
-        modes, zeta, _, _ = fam.parts(x)
-        red = basis_at(ctx, layout, x, panel)
-        slots, layout, x, lo, hi = retake_slots(ctx, fam, modes, zeta, layout, x, lo, hi)
-        if moved < tol:
-            break
-    fam = Family.make(red, slots, layout, ctx.default_zeta)
-    return Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor), panel)
+    return best
 
 
 def retake_slots(ctx: Context, fam: Family, modes: Modes, zeta: np.ndarray, layout: Layout, x, lo, hi):
