@@ -90,7 +90,7 @@ def definite(search: tuple[SearchParameter, ...]) -> tuple[SearchParameter, ...]
         base, at, suffix = q.name.partition("@")
         if base not in limits:
             return q.low
-        along, ratio = limits[base]
+        along, ratio = limits[base]  # 1 % above the margin's line, which is itself refused
         return max(q.low, DEFINITE_MARGIN * 1.01 * ratio * high[along + at + suffix])
     return tuple(replace(q, low=floor(q), mean=max(q.mean, floor(q))) for q in search)
 
