@@ -7,6 +7,8 @@ A coarse box model (every panel order - 4, the ``coarse_box_model`` fixture) kee
 file fast; the physics checked is the same at full order."""
 import json
 import re
+from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -219,6 +221,40 @@ def test_a_force_gain_within_a_load_cells_tolerance_is_not_a_cause():
     force = EXTENSIONS["force_calibration"]
     assert force.at_null_end({"force_gain": 1.008}) and force.at_null_end({"force_gain": 0.992})
     assert not force.at_null_end({"force_gain": 1.03}) and not force.at_null_end({"force_gain": 0.97})
+
+
+def test_a_load_cell_is_named_only_where_its_gain_stands_above_the_channels_level_scatter():
+    """A force gain is one factor on every channel. Measured FRFs that are a model's over
+    one gain have no level scatter about their common offset, and a gain of 0.96 passes;
+    a model whose level differs by channel (here by +-12 % about a common 12 %) has a
+    scatter of 12 %, and a gain of 0.88 that gains as much is not named, with the reason
+    in the summary."""
+    from calibration.diagnosis.excitation.decision import passes, summary_lines
+    from calibration.diagnosis.excitation.force import UNIFORM
+    from calibration.diagnosis.excitation.frf import level_offsets, level_scatter
+
+    rng = np.random.default_rng(2)
+    n_f, n_s = 200, 6
+    H = (rng.standard_normal((n_f, n_s)) + 1j * rng.standard_normal((n_f, n_s))) * 1e-5
+    meas = MeasuredFRF(np.linspace(6.0, 30.0, n_f), H / 0.96, np.full((n_f, n_s), 1e-4), 40)
+    common, per, _ = level_offsets(meas, H, 0.01)
+    assert common == pytest.approx(np.log(0.96)) and np.allclose(per, np.log(0.96))
+    assert level_scatter(meas, H, 0.01) == pytest.approx(0.0, abs=1e-12)
+    tilt = np.exp(0.12 * np.array([1, -1, 1, -1, 1, -1]))  # channel levels off by +-12 % about their mean
+    assert level_scatter(MeasuredFRF(meas.frequency, H * tilt, meas.sigma2, 40), H, 0.01) == pytest.approx(0.12)
+
+    s = ExcitationDiagnosisSettings()
+    before = np.linspace(5.0, 15.0, 27)
+    uniform = replace(_hypothesis("force_calibration", before, before * 0.4), parameters={"force_gain": 0.96},
+                      level_scatter=0.005)
+    mixed = replace(uniform, parameters={"force_gain": 0.88}, level_scatter=0.12)
+    assert np.log(1 / 0.88) < UNIFORM * 0.12 and not uniform.mixed_level and mixed.mixed_level
+    assert passes(uniform, s) and not passes(mixed, s)
+    ev = SimpleNamespace(parameters_at_bounds=(), heldout_error_mean=400.0)
+    words = summary_lines("unexplained", None, [], [], ev, [mixed])
+    assert any("force_calibration not named" in w and "12.0% (rms)" in w and "not the load cell's" in w
+               for w in words)
+    assert mixed.to_json()["level_scatter"] == 0.12
 
 
 def _hypothesis(name: str, before, after, n_params: int = 1) -> Hypothesis:

@@ -4,8 +4,10 @@ summary in words.
 
 The gain of a hypothesis is the relative reduction of the held-out error summed over all
 channels; the cause is the hypothesis with the largest gain less ``penalty`` per parameter
-if that is at least ``min_gain``, no channel worsens by more than ``max_loss``, and its fit
-does not end where its effect vanishes (:attr:`.extensions.ExcitationExtension.null_end`).
+if that is at least ``min_gain``, no channel worsens by more than ``max_loss``, its fit
+does not end where its effect vanishes (:attr:`.extensions.ExcitationExtension.null_end`),
+and an effect that is one factor on every channel stands above the channels' own level
+scatter (:attr:`.extensions.ExcitationExtension.uniform_level`).
 Otherwise ``none`` when the baseline's held-out error is within ``noise_alarm`` of the noise
 and no identified mode is left unpaired with the held-out FRF around it misfitted, else
 ``unexplained``.
@@ -24,6 +26,8 @@ from .context import Context
 from .evidence import ChannelLeftOut, Evidence, HeldOut, UnpairedMode, confined_channel, heldout
 from .extensions import EXTENSIONS, ExcitationExtension
 from .fitting import Fitted
+from .force import UNIFORM
+from .frf import level_scatter
 from .settings import ExcitationDiagnosisSettings
 
 
@@ -39,6 +43,8 @@ class Hypothesis:
     worst_loss : largest worsening of a channel, in units of its error (>= the noise) [-]
     penalised_gain : gain less the penalty per parameter [-]
     heldout : this model against the held-out FRFs
+    level_scatter : for a factor on every channel, the rms of the channels' level offsets
+        about their common one that this model leaves on the held-out FRFs [-] (else None)
     """
 
     name: str
@@ -55,6 +61,15 @@ class Hypothesis:
     worst_loss: float
     penalised_gain: float
     heldout: HeldOut
+    level_scatter: float | None = None
+
+    @property
+    def mixed_level(self) -> bool:
+        """Is this a factor on every channel that does not stand :data:`.force.UNIFORM`
+        times above the channels' own level scatter?"""
+        if self.level_scatter is None:
+            return False
+        return bool(abs(np.log(self.parameters["force_gain"])) < UNIFORM * self.level_scatter)
 
     @property
     def reduction(self) -> np.ndarray:
@@ -81,7 +96,8 @@ class Hypothesis:
                 "n_params": self.n_params, "at_null_end": self.at_null_end, "factors": dict(self.factors),
                 "training_error_mean": self.training_error_mean, "heldout_error": self.heldout_error_json(),
                 "best_channel": self.best_channel, "best_channel_reduction": self.best_channel_reduction,
-                "gain": self.gain, "worst_loss": self.worst_loss, "penalised_gain": self.penalised_gain}
+                "gain": self.gain, "worst_loss": self.worst_loss, "penalised_gain": self.penalised_gain,
+                **({} if self.level_scatter is None else {"level_scatter": self.level_scatter})}
 
 
 def judge(ctx: Context, ext: ExcitationExtension, fitted: Fitted, before: np.ndarray) -> Hypothesis:
@@ -92,15 +108,18 @@ def judge(ctx: Context, ext: ExcitationExtension, fitted: Fitted, before: np.nda
     gain = 1.0 - float(after.sum()) / float(before.sum())
     loss = (after - before) / np.maximum(before, 1.0)  # worsening in units of the channel's error (>= noise)
     params = fitted.extension_parameters(ctx.carbody_mass)
+    scatter = level_scatter(ctx.meas_test, held.H, ctx.settings.floor) if ext.uniform_level else None
     return Hypothesis(ext.name, ext.description, params, ext.n_params, ext.at_null_end(params),
                       fitted.factors(ctx.names), fitted.train_error / len(ctx.sensors), ctx.sensors, before, after,
-                      gain, float(loss.max()), gain - ctx.settings.penalty * ext.n_params, held)
+                      gain, float(loss.max()), gain - ctx.settings.penalty * ext.n_params, held, scatter)
 
 
 def passes(h: Hypothesis, settings: ExcitationDiagnosisSettings) -> bool:
-    """Whether ``h`` gains enough, loses little and does not end at its null end."""
+    """Whether ``h`` gains enough, loses little, does not end at its null end and, as a factor
+    on every channel, stands above the channels' level scatter."""
     s = settings
-    return h.penalised_gain >= s.min_gain and h.worst_loss <= s.max_loss and not h.at_null_end
+    return h.penalised_gain >= s.min_gain and h.worst_loss <= s.max_loss and not h.at_null_end \
+        and not h.mixed_level
 
 
 def name_cause(hypotheses: Sequence[Hypothesis], alarms: Sequence[str],
@@ -224,6 +243,11 @@ def summary_lines(cause: str, best: Hypothesis | None, alarms: list[str], notes:
     out += [f"{h.name} not named: its fit ends at its null end ({_null_words(h.name)}; "
             + _values(h.parameters, ".3g") + "); its gain comes from re-adjusting the baseline"
             for h in hypotheses if h.at_null_end and h.gain > 0]
+    out += [f"{h.name} not named: its gain {h.parameters['force_gain']:.4g} removes a common level offset of "
+            f"{abs(np.log(h.parameters['force_gain'])):.1%}, but the channels' own level offsets scatter by "
+            f"{h.level_scatter:.1%} (rms) about it, more than 1/{UNIFORM:g} of it: a level error that differs by "
+            "channel is the model's (its masses or modal constants), not the load cell's"
+            for h in hypotheses if h.mixed_level and not h.at_null_end and h.gain > 0]
     if evidence.parameters_at_bounds:
         out.append("baseline factors at their bounds: " + ", ".join(evidence.parameters_at_bounds))
     return out

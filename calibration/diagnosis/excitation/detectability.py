@@ -26,7 +26,9 @@ decision's bar (:mod:`calibration.diagnosis.limits`). The effect's other paramet
 varied over what the catalogue may hide, and the weakest counts: the equipment tuned to
 each carbody mode in 8-20 Hz where that mode moves the floor most, the softening on each
 panel the catalogue softens (the roof and the floor panels). A force gain within 1 % of 1
-is the load cell's tolerance and never named, so its limit is at least that.
+is the load cell's tolerance and never named, so its limit is at least that, and at least
+the gain that stands :data:`.force.UNIFORM` times above the baseline's channel level
+scatter (:func:`.frf.level_scatter`), as the decision requires.
 """
 from __future__ import annotations
 
@@ -37,7 +39,8 @@ from .context import Context
 from .equipment import MASS_RANGE, SCAN_DAMPING, mount_grid
 from .extensions import EXTENSIONS
 from .fitting import Fitted, factor_bounds
-from .frf import equipment_accelerance, modal_accelerance, normalised_error_lines
+from .force import UNIFORM
+from .frf import equipment_accelerance, level_scatter, modal_accelerance, normalised_error_lines
 from .least_squares import jacobian
 from .softening import DIVISOR_RANGE, panel_family
 
@@ -176,9 +179,11 @@ def _softening(ctx: Context, base: Fitted):
     return out
 
 
-def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
+def _limit(ctx: Context, name: str, variants: list, refit: Refit, level_floor: float | None = None) -> Limit:
     """The weakest over ``variants`` ((held values in words, theta -> residual changes)) of
-    the smallest size that clears the bar."""
+    the smallest size that clears the bar; for a factor on every channel, at least what
+    stands :data:`.force.UNIFORM` times above the baseline's channel level scatter
+    ``level_floor``."""
     mag, ext = MAGNITUDES[name], EXTENSIONS[name]
     bar = ctx.settings.bar(ext.n_params)
     stronger = "above" if mag.strong > mag.weak else "below"
@@ -214,6 +219,11 @@ def _limit(ctx: Context, name: str, variants: list, refit: Refit) -> Limit:
     never = float(np.expm1(ext.null_tol))  # a gain within its tolerance (in log, either side) is never named
     if ext.null_end is not None and ext.null_end[1] == 1.0 and limit < never:
         limit, tolerance = never, "; smaller errors are within a load cell's tolerance and not named"
+    if ext.uniform_level and level_floor is not None:  # a gain must stand above the channels' level scatter
+        uniform = float(np.expm1(UNIFORM * level_floor))
+        if limit < uniform:
+            limit, tolerance = uniform, (f"; smaller errors are within the channels' own level scatter "
+                                         f"({level_floor:.1%} rms) and not named")
     what = f"|{mag.parameter}|" if mag.signed else mag.parameter
     side = "and above" if stronger == "above" else "and below"
     return Limit(name, mag.parameter, mag.unit, limit, True,
@@ -228,4 +238,6 @@ def detectability(ctx: Context, base: Fitted) -> Detectability:
     variants = {"underfloor_equipment": _equipment(ctx, base),
                 "local_panel_softening": _softening(ctx, base),
                 "force_calibration": _force(ctx, base)}
-    return Detectability(tuple(_limit(ctx, name, variants[name], refit) for name in EXTENSIONS))
+    meas = ctx.meas_test
+    scatter = level_scatter(meas, base.accelerance(meas.frequency), ctx.settings.floor)
+    return Detectability(tuple(_limit(ctx, name, variants[name], refit, scatter) for name in EXTENSIONS))

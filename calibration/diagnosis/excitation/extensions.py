@@ -22,6 +22,9 @@ class ExcitationExtension:
         softening divisor), or 1 for a gain. A fit that ends within ``null_tol`` of it (in
         log) gains by adjusting the baseline, not by the effect, and is not named as the
         cause; for the force gain that 1 % is a load cell's calibration tolerance
+    uniform_level : the effect is one factor on every channel (the force gain): it is named
+        only where that factor stands above the channels' own level scatter
+        (:data:`.force.UNIFORM`)
     """
 
     name: str
@@ -30,6 +33,7 @@ class ExcitationExtension:
     fit: Callable
     null_end: tuple[str, float] | None = None
     null_tol: float = 0.01
+    uniform_level: bool = False
 
     def at_null_end(self, parameters: dict) -> bool:
         """Whether the fitted ``parameters`` end within :attr:`null_tol` (log) of :attr:`null_end`."""
@@ -60,5 +64,5 @@ EXTENSIONS: dict[str, ExcitationExtension] = {e.name: e for e in (
         "the exciter's force sensor reads the applied force times a gain (its calibration factor off), so every "
         "FRF is the structure's divided by it; a carbody mass and stiffness all off by one factor would read the "
         "same",
-        ("force_gain",), fit_force, null_end=("force_gain", 1.0)),
+        ("force_gain",), fit_force, null_end=("force_gain", 1.0), uniform_level=True),
 )}

@@ -66,6 +66,22 @@ def normalised_error_lines(meas: MeasuredFRF, H_model: np.ndarray, floor: float)
     return r / (2 * (meas.sigma2 + floor**2))
 
 
+def level_offsets(meas: MeasuredFRF, H_model: np.ndarray, floor: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """(the common level offset, each channel's (n_s,), each channel's weight (n_s,)): means
+    of log|H_model / H_meas| weighted as E weighs each line [-]."""
+    w = 1.0 / (2 * (meas.sigma2 + floor**2)) * np.ones(meas.H.shape)
+    r = np.log(np.abs(H_model / meas.H))
+    W = np.sum(w, axis=0)
+    return float(np.sum(w * r) / np.sum(w)), np.sum(w * r, axis=0) / W, W
+
+
+def level_scatter(meas: MeasuredFRF, H_model: np.ndarray, floor: float) -> float:
+    """The rms of the channels' level offsets (:func:`level_offsets`) about their common one,
+    weighted by channel [-]: zero where a model's level is off by one factor everywhere."""
+    common, per, W = level_offsets(meas, H_model, floor)
+    return float(np.sqrt(np.sum(W * (per - common) ** 2) / np.sum(W)))
+
+
 def normalised_error(meas: MeasuredFRF, H_model: np.ndarray, floor: float) -> np.ndarray:
     """E_o per channel (module docstring) [-]: about 1 when the model is within the noise."""
     return np.mean(normalised_error_lines(meas, H_model, floor), axis=0)
