@@ -547,6 +547,8 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     soft = detect["local_panel_softening"]["why"]  # each panel the catalogue softens: the weakest counts
     assert all((f"panel {pn.name}" in soft) == (pn.group in ("roof", "floor")) for pn in model.vehicle.panels), soft
     assert "panel roof (its own factors absorb a divisor up to" in soft  # the roof's softening is its factors / it
+    fitted = next(h for h in data["hypotheses"] if h["name"] == "local_panel_softening")  # searched where it speaks
+    assert fitted["parameters"]["panel"] in {pn.name for pn in model.vehicle.panels if pn.group in ("roof", "floor")}
     for h in data["hypotheses"]:  # every runner-up with its gain's interval over the held-out channels
         lo, hi = h["interval_95"]
         assert h["heldout_channels"] == len(SENSOR_GRID) and lo <= h["gain"] <= hi, h

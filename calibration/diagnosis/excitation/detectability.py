@@ -42,7 +42,7 @@ from .fitting import Fitted, factor_bounds
 from .force import UNIFORM
 from .frf import equipment_accelerance, level_scatter, modal_accelerance, normalised_error_lines
 from .least_squares import jacobian
-from .softening import DIVISOR_RANGE, panel_family
+from .softening import DIVISOR_RANGE, panel_family, softening_panels
 
 #: [Hz] the carbody modes the effects catalogue tunes underfloor equipment to
 EQUIPMENT_BAND = (8.0, 20.0)
@@ -141,12 +141,6 @@ def _equipment(ctx: Context, base: Fitted):
     return out
 
 
-#: the panel groups the effects catalogue softens (the roof, or one of the three floor
-#: panels: docs/methods/truth-simulator.md); the extension searches every panel, but what
-#: ``none`` rules out is said for the catalogue's effect
-SOFTENING_GROUPS = ("roof", "floor")
-
-
 def _softening(ctx: Context, base: Fitted):
     """Each panel the catalogue may soften, softened on the baseline: the softening's model of
     that panel (:func:`.softening.panel_family`, the scan's where the baseline was not
@@ -158,12 +152,10 @@ def _softening(ctx: Context, base: Fitted):
     p_b, z_b, _ = base.layout.split(base.x)
     head = np.r_[np.log(p_b), np.log(z_b)]
     out = []
-    for pn in ctx.model.vehicle.panels:
-        if pn.group not in SOFTENING_GROUPS:
-            continue
-        fam = panel_family(ctx, base, pn.name)
-        own = ctx.ops.own_group_factors(pn.name)
-        _, Kp = ctx.ops.panel_stiffness(pn.name)
+    for name in softening_panels(ctx.model):
+        fam = panel_family(ctx, base, name)
+        own = ctx.ops.own_group_factors(name)
+        _, Kp = ctx.ops.panel_stiffness(name)
         absorbed = 1.0
         if own and set(Kp) == set(own):
             i = [ctx.names.index(n) for n in own]
@@ -173,8 +165,8 @@ def _softening(ctx: Context, base: Fitted):
             left = max(theta / absorbed, 1.0)
             return _residual_change(ctx, lambda f: (fam.accelerance(np.r_[head, np.log(left)], f),
                                                     fam.accelerance(np.r_[head, 0.0], f)))
-        words = f"panel {pn.name}" + ("" if absorbed == 1.0 else
-                                      f" (its own factors absorb a divisor up to {absorbed:.3g})")
+        words = f"panel {name}" + ("" if absorbed == 1.0 else
+                                   f" (its own factors absorb a divisor up to {absorbed:.3g})")
         out.append((words, change))
     return out
 

@@ -57,7 +57,8 @@ EXTENSIONS: dict[str, ExcitationExtension] = {e.name: e for e in (
         fit_equipment),
     ExcitationExtension(
         "local_panel_softening",
-        "one carbody panel (roof, floor, side or end) with its rigidities divided by its own factor",
+        "one carbody panel (the roof or a floor panel, as the effects catalogue's) with its rigidities divided by "
+        "its own factor",
         ("panel", "rigidity_divisor"), fit_softening, null_end=("rigidity_divisor", DIVISOR_RANGE[0])),
     ExcitationExtension(
         "force_calibration",

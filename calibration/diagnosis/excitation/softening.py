@@ -1,5 +1,9 @@
-"""The extension ``local_panel_softening``: one panel's rigidities (any panel of the carbody:
-roof, floors, sides, ends) divided by its own factor, fitted to the training FRFs.
+"""The extension ``local_panel_softening``: one panel's rigidities divided by its own factor,
+fitted to the training FRFs. The panels are those the effects catalogue softens, the roof
+and the three floor panels (:data:`SOFTENING_GROUPS`): the ones the detectability speaks
+for. The side and end walls are where the box model is crudest (smeared windows, one end
+rigidity); softened, they patched its form on a clean independent shell car (bench seed
+6503: the rear end wall over 3.5, confidence high).
 
 A softened panel can leave the baseline in a basin far from the truth, so the fit is started
 from three factor sets (the baseline's, the nominal ones, and those of a particle swarm per
@@ -22,6 +26,16 @@ from .context import Context
 from .family import Family, Layout
 from .fitting import Fitted, at_bounds, basis_at, extension_start, factor_bounds, fit_best
 from .least_squares import least_squares, total_error
+
+#: the panel groups the effects catalogue softens (the roof, or one of the three floor
+#: panels: docs/methods/truth-simulator.md), and so the panels this extension searches
+SOFTENING_GROUPS = ("roof", "floor")
+
+
+def softening_panels(model: BoxModel) -> tuple[str, ...]:
+    """The panels of ``model`` a softening is searched on (:data:`SOFTENING_GROUPS`)."""
+    return tuple(pn.name for pn in model.vehicle.panels if pn.group in SOFTENING_GROUPS)
+
 
 #: rigidity divisors searched: from barely softer (1.2, the null end: a fit that ends there
 #: only re-adjusts the baseline) to 30, three times the top of the effects catalogue's range
@@ -147,7 +161,7 @@ def _scan(ctx: Context, base: Fitted) -> tuple[list[tuple], list[PanelSwarm]]:
     p_b, z_b, _ = base.layout.split(base.x)
     p_nom = ctx.nominal
     scan, swarms = [], []
-    for panel in (pn.name for pn in ctx.model.vehicle.panels):  # any panel of the carbody may be the soft one
+    for panel in softening_panels(ctx.model):
         sw = panel_swarm(ctx, panel)
         swarms.append(sw)
         found = sorted({float(np.clip(d, *DIVISOR_RANGE)) for d in sw.divisors.values()})
@@ -187,7 +201,7 @@ def fit_softening(ctx: Context, base: Fitted) -> list[Fitted]:
     # refined whatever its scan score (the baseline's other factors bent around it, so
     # the scan, which holds them, underrates it); then the best-scoring panels
     lower = {n.split(" ")[0] for n in at_bounds(ctx, base) if n.endswith("(lower)")}
-    pressed = {pn.name for pn in ctx.model.vehicle.panels if lower & set(ctx.ops.own_group_factors(pn.name))}
+    pressed = {pn for pn in softening_panels(ctx.model) if lower & set(ctx.ops.own_group_factors(pn))}
     if pressed:
         ctx.say(f"panel(s) whose own factors sit at their lower bound, refined first: {', '.join(sorted(pressed))}")
     # the panel the swarm fits the identified modes best with is refined from its own
