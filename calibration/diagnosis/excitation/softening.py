@@ -19,7 +19,7 @@ import numpy as np
 
 from ...calibrate_box import RefineSettings, SwarmSettings, calibrate_box, targets_from_identification
 from ...models.box import BoxModel
-from ...models.box.shinkansen import DEFINITE_MARGIN, across_limits
+from ...models.box.shinkansen import DEFINITE_MARGIN, across_partner
 from ...optimisers.base import SearchParameter
 from .basis import Operators, ReducedFRFModel, Stiffness
 from .context import Context
@@ -98,14 +98,13 @@ def definite(search: tuple[SearchParameter, ...]) -> tuple[SearchParameter, ...]
     swarm's lows, divided for softening, would reach it in the orthotropic set. A softening
     divides all of a panel's rigidities alike, so their ratio needs no such room."""
     high = {q.name: q.high for q in search}
-    limits = across_limits()
 
     def floor(q: SearchParameter) -> float:
-        base, at, suffix = q.name.partition("@")
-        if base not in limits:
+        partner = across_partner(q.name)
+        if partner is None:
             return q.low
-        along, ratio = limits[base]  # 1 % above the margin's line, which is itself refused
-        return max(q.low, DEFINITE_MARGIN * 1.01 * ratio * high[along + at + suffix])
+        along, ratio = partner  # 1 % above the margin's line, which is itself refused
+        return max(q.low, DEFINITE_MARGIN * 1.01 * ratio * high[along])
     return tuple(replace(q, low=floor(q), mean=max(q.mean, floor(q))) for q in search)
 
 

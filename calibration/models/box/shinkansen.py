@@ -254,21 +254,26 @@ def across_limits() -> dict[str, tuple[str, float]]:
     return out
 
 
+def across_partner(name: str) -> tuple[str, float] | None:
+    """For a cross-direction factor (:func:`across_limits`; the name may carry a panel copy's
+    suffix ``@panel``) its lengthwise partner's name, with the same suffix, and the limiting
+    ratio; None for any other factor."""
+    base, at, suffix = name.partition("@")
+    limit = across_limits().get(base)
+    return None if limit is None else (limit[0] + at + suffix, limit[1])
+
+
 def indefinite_plates(low: dict[str, float], high: dict[str, float], margin: float = DEFINITE_MARGIN) -> list[str]:
     """Where factor ranges (``low``, ``high``: {name: value}; a point if equal) reach a plate
     that is not safely positive definite (:data:`DEFINITE_MARGIN`): for each split pair both
-    name, the pair with the lowest across over the highest along, in words. Names may carry a
-    suffix (``@panel``, a panel's own copy)."""
+    name, the pair with the lowest across over the highest along, in words."""
     out = []
     for name, lo in low.items():
-        base, at, suffix = name.partition("@")
-        if base not in across_limits():
-            continue
-        along, ratio = across_limits()[base]
-        top = high.get(along + at + suffix)
-        if top is not None and not lo > margin * ratio * top:
-            out.append(f"{name} {lo:g} over {along + at + suffix} {top:g} is {lo / top:.3g}, at or below "
-                       f"{margin:g} x {ratio:.3g} (where the plate's stiffness loses definiteness)")
+        partner = across_partner(name)
+        top = None if partner is None else high.get(partner[0])
+        if top is not None and not lo > margin * partner[1] * top:
+            out.append(f"{name} {lo:g} over {partner[0]} {top:g} is {lo / top:.3g}, at or below "
+                       f"{margin:g} x {partner[1]:.3g} (where the plate's stiffness loses definiteness)")
     return out
 
 
