@@ -2,8 +2,8 @@
 deliverable 4, "and the stationary one"): campaigns of the shell finite element carbody
 (``synth excitation --truth exudyn``, docs/methods/truth-independent-stationary.md), which
 the box model did not generate, each calibrated as a user would (``railcal calibrate --model box --method pso --factors
-FACTORS --refine --particles 300 --iterations 300``: the swarm on the identified modes in
-four swarms, refined) and diagnosed from that calibration (``railcal diagnose
+FACTORS --refine --particles 300 --iterations 300``: the command's swarm on the identified
+modes, refined) and diagnosed from that calibration (``railcal diagnose
 --calibration``), against the full-order box model: the commands themselves, run in
 process. ``--factors`` is ``orthotropic`` (the default since 2026-11-28) or ``windowed``
 (the bench's first runs); each set's calibrations and diagnoses are kept apart.
