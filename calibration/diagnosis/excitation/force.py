@@ -23,6 +23,7 @@ import numpy as np
 from .context import Context
 from .family import Layout
 from .fitting import Fitted, factor_bounds, fit
+from .frf import level_offsets
 
 #: force gains searched (measured / applied): a calibration factor off by up to a factor 2
 #: either way; a load cell's usual uncertainty is a per cent or two
@@ -38,9 +39,7 @@ def level_offset(ctx: Context, base: Fitted) -> float:
     """log g at which ``base`` / g fits the training FRFs' levels best: the mean of
     log|H_base / H_meas| weighted as the residual weights each line."""
     meas = ctx.meas
-    w = 1.0 / (2 * (meas.sigma2 + ctx.settings.floor**2))
-    r = np.log(np.abs(base.accelerance(meas.frequency) / meas.H))
-    return float(np.sum(w * r) / np.sum(w))
+    return level_offsets(meas, base.accelerance(meas.frequency), ctx.settings.floor)[0]
 
 
 def fit_force(ctx: Context, base: Fitted) -> list[Fitted]:

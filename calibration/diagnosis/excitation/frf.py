@@ -69,7 +69,7 @@ def normalised_error_lines(meas: MeasuredFRF, H_model: np.ndarray, floor: float)
 def level_offsets(meas: MeasuredFRF, H_model: np.ndarray, floor: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(the common level offset, each channel's (n_s,), each channel's weight (n_s,)): means
     of log|H_model / H_meas| weighted as E weighs each line [-]."""
-    w = 1.0 / (2 * (meas.sigma2 + floor**2)) * np.ones(meas.H.shape)
+    w = 1.0 / (2 * (meas.sigma2 + floor**2))
     r = np.log(np.abs(H_model / meas.H))
     W = np.sum(w, axis=0)
     return float(np.sum(w * r) / np.sum(w)), np.sum(w * r, axis=0) / W, W
