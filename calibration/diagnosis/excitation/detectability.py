@@ -69,13 +69,15 @@ class Refit:
         self.n_f, self.n_s = e_lines.shape
 
     @classmethod
-    def of(cls, ctx: Context, base: Fitted) -> "Refit":
+    def of(cls, ctx: Context, base: Fitted, H_test: np.ndarray | None = None) -> "Refit":
+        """The refit of ``base``; ``H_test``: its accelerance at the held-out lines, if at hand."""
         s = ctx.settings
         _, hi = factor_bounds(ctx, base.layout.n_slots)
         free = np.ones(base.x.size, bool)
         J_tr = jacobian(base.family, base.x, ctx.meas, s.floor, free, hi)
         J_te = jacobian(base.family, base.x, ctx.meas_test, s.floor, free, hi)
-        e = normalised_error_lines(ctx.meas_test, base.accelerance(ctx.meas_test.frequency), s.floor)
+        H = base.accelerance(ctx.meas_test.frequency) if H_test is None else H_test
+        e = normalised_error_lines(ctx.meas_test, H, s.floor)
         return cls(J_tr, J_te, e)
 
     def predict(self, d_train: np.ndarray, d_test: np.ndarray) -> tuple[float, float]:
@@ -226,10 +228,10 @@ def _limit(ctx: Context, name: str, variants: list, refit: Refit, level_floor: f
 def detectability(ctx: Context, base: Fitted) -> Detectability:
     """Each extension's detectable limit on this campaign, from the baseline ``base`` (see
     the module's description)."""
-    refit = Refit.of(ctx, base)
+    H_test = base.accelerance(ctx.meas_test.frequency)
+    refit = Refit.of(ctx, base, H_test)
     variants = {"underfloor_equipment": _equipment(ctx, base),
                 "local_panel_softening": _softening(ctx, base),
                 "force_calibration": _force(ctx, base)}
-    meas = ctx.meas_test
-    scatter = level_scatter(meas, base.accelerance(meas.frequency), ctx.settings.floor)
+    scatter = level_scatter(ctx.meas_test, H_test, ctx.settings.floor)
     return Detectability(tuple(_limit(ctx, name, variants[name], refit, scatter) for name in EXTENSIONS))
