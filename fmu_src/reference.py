@@ -12,7 +12,7 @@ import numpy as np
 import scipy.signal
 
 from calibration.models.car2d import (GRAVITY, CarExtras, Output, build_car, state_space, static_deflection,
-                                      wheelset_positions)
+                                      wheel_level_gain, wheelset_positions)
 from calibration.models.parameters import CarParameters
 from calibration.models.simulate import ModalSimulator
 
@@ -74,6 +74,8 @@ def car_reference(spec: ModelSpec, p: CarParameters, profile: Profile, speed: fl
         if free:  # the wheelset's own level, its static deflection and its acceleration
             gw = asm.point_row(f"wheelset{wheel + 1}", xw[wheel])
             w, dw, ddw = (y[:, col[f"{v.name}:wheelset:{q}"]] for q in ("displacement", "velocity", "acceleration"))
+            above = wheel_level_gain(p, extras or CarExtras())  # its coordinate is the wheelset's and track's centre
+            w, dw, ddw = w + above * z[:, wheel], dw + above * dz[:, wheel], ddw + above * ddz[:, wheel]
             g = g - gw
         else:
             w, dw, ddw = z[:, wheel], dz[:, wheel], ddz[:, wheel]

@@ -200,8 +200,8 @@ EXTRAS_VARIABLES = {
         ("node_mass", "kg", "mass of the node between reservoir stiffness and orifice")),
     "CAR_TRACK": (
         ("track_stiffness", "N/m", "track stiffness under each wheelset"),
-        ("track_damping_ratio", None, "track damping ratio under each wheelset"),
-        ("track_mass", "kg", "rail and sleeper mass moving with each wheelset")),
+        ("track_damping_ratio", None, "track damping / the track mass's critical damping on its stiffness"),
+        ("track_mass", "kg", "rail and sleeper mass under each wheelset, below the wheel-rail contact")),
 }
 HUNG_VARIABLES = (("mass", "kg", "mass"), ("x", "m", "position ahead of the carbody's middle"),
                   ("mount_stiffness", "N/m", "mount stiffness"), ("mount_damping", "N.s/m", "mount damping"))

@@ -35,8 +35,9 @@ vehicle geometry are the only things shared):
   shape = :func:`~calibration.models.assembly.beam_bending_shape`;
 * ``reservoir_ratio``: per air spring a ``Node1D`` of ``node_mass`` at the bogie's x, on the
   reservoir spring k_r to the carbody and the orifice damper c_o to the bogie;
-* ``track_stiffness``: the wheelsets (m_w + track_mass) are free; the rail-level constraint
-  holds a massless rail point under each instead, joined to it by the track's spring-damper;
+* ``track_stiffness``: under each wheelset a ``track_mass`` point on the track's
+  spring-damper to ground; the rail-level constraint holds the wheelset at that point's
+  level plus the rail level (the irregularity at the wheel-rail contact);
 * ``bodies`` / ``elements``: point masses (``ObjectMass1D``) and their spring-dampers, e.g.
   equipment hung under the carbody.
 
@@ -59,7 +60,7 @@ import scipy.optimize
 from exudyn.itemInterface import (CartesianSpringDamper, CoordinateConstraint, CoordinateVectorConstraint,
                                   MarkerBodyPosition, MarkerNodeCoordinate, MarkerNodeCoordinates,
                                   MarkerObjectODE2Coordinates, Node1D, NodePointGround, NodeRigidBody2D,
-                                  ObjectGenericODE2, ObjectMass1D, ObjectRigidBody2D, SensorNode)
+                                  ObjectGenericODE2, ObjectGround, ObjectMass1D, ObjectRigidBody2D, SensorNode)
 
 from calibration.models.assembly import Body, SpringDamper, beam_bending_shape
 from calibration.models.car2d import (CarExtras, bogie_positions, build_car, damped_modes, undamped_modes,
@@ -79,11 +80,12 @@ class CarHandles:
     """Indices of the exudyn car's items.
 
     ``nodes`` and ``bodies``: carbody, bogie1, bogie2, wheelset1..4, and with extras
-    reservoir1..2, rail1..4 (the rail points under free wheelsets), the extra bodies and
-    ``carbody_bending`` (the node of q; its body is the ``ObjectGenericODE2``); ``springs``:
-    every spring-damper by railcal's element name (primary1..4, secondary1..2, contact1..4,
-    reservoir1_spring, reservoir1_orifice, ..., the extra elements); ``rail_constraints``: one
-    per wheelset (on the wheelset itself, or on its rail point when the track is flexible);
+    reservoir1..2, track1..4 (the track masses under the wheelsets on a flexible track), the
+    extra bodies and ``carbody_bending`` (the node of q; its body is the
+    ``ObjectGenericODE2``); ``springs``: every spring-damper by railcal's element name
+    (primary1..4, secondary1..2, track1..4, reservoir1_spring, reservoir1_orifice, ..., the
+    extra elements); ``rail_constraints``: one per wheelset (to ground, or to its track mass
+    when the track is flexible);
     ``longitudinal_constraints``: one per rigid body. ``coordinates`` maps railcal's DOF names
     (carbody_z, carbody_pitch, carbody_bending, reservoir1_z, ...) to (ODE2 index, sign) with
     railcal DOF = sign * exudyn coordinate. ``carbody_points`` (bending only) maps the
@@ -165,6 +167,7 @@ class _CarBuilder:
         self.rigid, self.point_dofs, self.longitudinal = [], [], []
         self.elastic = None  # with bending: (marker on [carbody, q] coordinates, shape over x - x_c)
         self.carbody_points = {}  # with bending: x -> (node, constraint, marker)
+        self.ground = None  # the ground object, made when a spring is fixed to it
 
     def level(self, body: str, x: float) -> float:
         """Rest level [m] at t = 0 of the point of ``body`` at vehicle-frame ``x`` [m]."""
@@ -197,10 +200,13 @@ class _CarBuilder:
         if dof:
             self.point_dofs.append(name)
 
-    def hold_to_rail(self, name: str) -> int:
-        """A rail-level constraint on the point mass ``name`` (offset functions set later)."""
+    def hold_to_rail(self, name: str, on: str | None = None) -> int:
+        """A rail-level constraint on the point mass ``name``: its level is the rail's, above
+        ground or above the point mass ``on`` (offset functions set later)."""
         m = self.mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=self.nodes[name], coordinate=0))
-        return self.mbs.AddObject(CoordinateConstraint(markerNumbers=[self.m_ground, m]))
+        below = self.m_ground if on is None else \
+            self.mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=self.nodes[on], coordinate=0))
+        return self.mbs.AddObject(CoordinateConstraint(markerNumbers=[below, m]))
 
     def elastic_carbody(self, shape: Callable[[float], float], modal_mass: float, frequency: float,
                         damping_ratio: float) -> None:
@@ -236,7 +242,11 @@ class _CarBuilder:
         return self.carbody_points[x][2]
 
     def attach(self, body: str, x: float) -> int:
-        """Position marker of ``body``'s point at vehicle-frame ``x`` [m]."""
+        """Position marker of ``body``'s point at vehicle-frame ``x`` [m] (``ground``: the fixed point there)."""
+        if body == "ground":
+            if self.ground is None:
+                self.ground = self.mbs.AddObject(ObjectGround())
+            return self.mbs.AddMarker(MarkerBodyPosition(bodyNumber=self.ground, localPosition=[x, 0.0, 0.0]))
         if body == "carbody" and self.elastic is not None:
             return self._carbody_point(x)
         if body not in self.bodies:
@@ -299,7 +309,8 @@ def build_car_exudyn(p: CarParameters, *, rail: RailInput | None = None,
     -------
     mbs : exudyn.MainSystem  assembled, initial state = static equilibrium on the rail at
         t = 0 (all springs relaxed, body velocities zero, rail-held points at the rail's level
-        and rate).
+        and rate; on a flexible track the centre of mass of each wheelset and its track mass
+        at rest).
     handles : CarHandles
     """
     if not isinstance(p, CarParameters):
@@ -331,13 +342,16 @@ def build_car_exudyn(p: CarParameters, *, rail: RailInput | None = None,
         if ex.track_stiffness is None:  # the wheelset is held to the rail level; it loads nothing
             car.point_mass(w, p.m_w, xw[j], z0[j], dz0[j], dof=False)
             rail_constraints.append(car.hold_to_rail(w))
-        else:  # a massless rail point is held to the rail level; the wheelset rides on the track's spring
-            m = p.m_w + ex.track_mass
-            car.point_mass(f"rail{j + 1}", 0.0, xw[j], z0[j], dz0[j], dof=False)
-            rail_constraints.append(car.hold_to_rail(f"rail{j + 1}"))
-            car.point_mass(w, m, xw[j], z0[j])
-            car.spring_damper(f"contact{j + 1}", (w, xw[j]), (f"rail{j + 1}", xw[j]), ex.track_stiffness,
-                              2.0 * ex.track_damping_ratio * np.sqrt(ex.track_stiffness * m))
+        else:  # the wheelset is held at the level of the track mass under it plus the rail level
+            # railcal's coordinate is their centre of mass (neither is one of its DOFs), at rest at the
+            # start as every body is: the track mass moves down as the wheelset follows the rail up
+            track = f"track{j + 1}"
+            a = p.m_w / (p.m_w + ex.track_mass)
+            car.point_mass(track, ex.track_mass, xw[j], 0.0, -a * dz0[j], dof=False)
+            car.spring_damper(track, (track, xw[j]), ("ground", xw[j]), ex.track_stiffness,
+                              2.0 * ex.track_damping_ratio * np.sqrt(ex.track_stiffness * ex.track_mass))
+            car.point_mass(w, p.m_w, xw[j], z0[j], (1.0 - a) * dz0[j], dof=False)
+            rail_constraints.append(car.hold_to_rail(w, on=track))
         car.spring_damper(f"primary{j + 1}", (bogie, xw[j]), (w, xw[j]), p.k_p, p.c_p)
 
     if ex.reservoir_ratio > 0:  # air spring reservoir: k_r to the carbody, in series with the orifice c_o

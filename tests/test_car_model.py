@@ -57,6 +57,53 @@ def test_free_wheelsets_on_a_stiff_contact_approach_the_rail_model():
     assert "axle_bounce" in f10
 
 
+def test_a_wheelset_on_a_flexible_track_follows_the_level_through_the_tracks_and_its_own_dynamic_stiffness():
+    """The rail's level is the irregularity at the wheel-rail contact, the track mass under it:
+    z_w / r = Z_t / (Z_t + Z_w), Z_t = k + i w c - w^2 m_t the track's dynamic stiffness, Z_w
+    the wheelset's own on the car (the seed's car with free wheelsets and no contact, the
+    other wheelsets on their tracks). The level goes through at low frequency and dips at
+    the track's own frequency."""
+    from calibration.models.car2d import CarExtras, dynamic_stiffness, frequency_response, wheel_level_gain
+
+    k, zeta, m_t = 25e6, 0.3, 900.0
+    c = 2 * zeta * np.sqrt(k * m_t)
+    f = np.array([2.0, 8.0, 20.0, np.sqrt(k / m_t) / (2 * np.pi), 45.0, 60.0])
+    w = 2 * np.pi * f
+    ex = CarExtras(track_stiffness=k, track_damping_ratio=zeta, track_mass=m_t)
+    H = frequency_response(build_car(P, extras=ex), [Output("w1", "displacement", "wheelset1", P.L_v + P.L_b)],
+                           f)[:, 0, 0] + wheel_level_gain(P, ex)  # the wheelset is its coordinate plus this x r
+    free = build_car(P, wheelsets="free", k_contact=0.0)
+    D, _ = dynamic_stiffness(free.K, free.M, free.C, free.B_k, free.B_c, w)
+    Z_t = k + 1j * w * c - w * w * m_t
+    j = free.dof("wheelset1_z")
+    others = [free.dof(f"wheelset{i}_z") for i in (2, 3, 4)]
+    rest = [i for i in range(len(free.dofs)) if i != j]
+    expected = []
+    for n in range(len(f)):
+        Dn = D[n].copy()
+        Dn[others, others] += Z_t[n]
+        Z_w = Dn[j, j] - Dn[j, rest] @ np.linalg.solve(Dn[np.ix_(rest, rest)], Dn[rest, j])
+        expected.append(Z_t[n] / (Z_t[n] + Z_w))
+    assert H == pytest.approx(np.array(expected), rel=1e-9)
+    assert abs(H[0]) == pytest.approx(1.0, abs=0.05)
+    assert abs(H[3]) < 0.5 * min(abs(H[2]), abs(H[0]))  # the dip at the track's own frequency
+
+
+def test_a_wheelsets_dynamic_stiffness_is_its_mass_at_high_frequency_and_the_car_above_it_at_low():
+    """Z_w -> -w^2 m_w well above the primary suspension's frequencies (the wheelset alone);
+    at low frequency the wheelset carries its share of the car through the suspension, a
+    stiffness that stays positive; its imaginary part is the suspension's damping (>= 0)."""
+    from calibration.models.car2d import wheelset_dynamic_stiffness
+
+    f = np.array([0.3, 2.0, 10.0, 200.0, 2000.0])
+    Z = wheelset_dynamic_stiffness(P, f, 1)
+    w = 2 * np.pi * f
+    assert Z[-1].real == pytest.approx(-w[-1] ** 2 * P.m_w, rel=2e-3)
+    assert np.all(Z.imag >= 0)
+    assert Z[0].real < 0  # a free car: its mass above the suspension shows at any frequency
+    assert wheelset_dynamic_stiffness(P, f, 2) == pytest.approx(Z, rel=1e-6)  # a symmetric bogie
+
+
 def test_modes_are_labelled_by_their_shape():
     labels = [m.label for m in undamped_modes(build_car(P))]
     assert sorted(set(labels)) == ["bogie_bounce", "bogie_pitch", "carbody_bounce", "carbody_pitch"]

@@ -31,7 +31,7 @@ from calibration.diagnosis.in_service.track import TrackSettings, fit_track, tra
 from calibration.diagnosis.in_service.wheels import WheelSettings, fit_polygon
 from calibration.models.assembly import UNIFORM_BEAM_NODE, beam_bending_shape
 from calibration.models.car2d import (CarExtras, Output, build_car, damped_modes, frequency_response, state_space,
-                                      undamped_modes)
+                                      undamped_modes, wheelset_dynamic_stiffness)
 from calibration.models.simulate import simulate
 from calibration.models.vehicles import INTERCITY_TRAILER
 from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, parse_effect
@@ -217,23 +217,25 @@ def test_band_edges_are_contiguous_and_at_least_the_minimum_width():
 
 
 def _track_statistics(runs=("run",), scatter: float = 0.0) -> Statistics:
-    """Axle-box spectra at four speeds of a smooth level spectrum through a 31 Hz track
-    (damping ratio 0.15), each band's power scattered by ``scatter`` (relative, seeded)."""
+    """Axle-box spectra at four speeds of a smooth level spectrum through a track of 700 kg
+    whose own frequency is 31 Hz (damping ratio 0.15) under the seed's car's wheelsets, each
+    band's power scattered by ``scatter`` (relative, seeded)."""
     s = RecordSettings()
     edges = band_edges(s)
     f = np.sqrt(edges[1:] * edges[:-1])
     bw = np.diff(edges)
     st = Statistics(("axle1_mean", "axle2_mean"), edges, f, s.segment_s)
     rng = np.random.default_rng(2)
+    z_w = wheelset_dynamic_stiffness(P, f, 1)
     for run in runs:
         for vb in (20.0, 27.5, 35.0, 42.5):
             v = vb + 1.25
             kappa = f / v
             Sz = 1e-7 / (kappa ** 2 + 0.02) / (kappa ** 2 + 0.8)  # a smooth level spectrum [m^2 m]
-            P = (2 * np.pi * f) ** 4 * Sz / v * transmissibility2(f, 31.0, 0.15)
+            psd = (2 * np.pi * f) ** 4 * Sz / v * transmissibility2(f, z_w, 31.0, 0.15, 700.0)
             S = np.zeros((f.size, 2, 2), complex)
-            S[:, 0, 0] = P * bw * 600.0 * (1 + scatter * rng.standard_normal(f.size))
-            S[:, 1, 1] = P * bw * 600.0 * (1 + scatter * rng.standard_normal(f.size))
+            S[:, 0, 0] = psd * bw * 600.0 * (1 + scatter * rng.standard_normal(f.size))
+            S[:, 1, 1] = psd * bw * 600.0 * (1 + scatter * rng.standard_normal(f.size))
             st.S[(run, vb)] = S
             st.seconds[(run, vb)] = 600.0
     return st
@@ -241,8 +243,10 @@ def _track_statistics(runs=("run",), scatter: float = 0.0) -> Statistics:
 
 def test_track_fit_recovers_a_resonance_from_spectra_at_several_speeds():
     st = _track_statistics()
-    fit = fit_track(st, set(st.S), flexible=True, settings=TrackSettings())
+    fit = fit_track(st, set(st.S), flexible=True, settings=TrackSettings(), vehicle=P)
     assert fit.f_t == pytest.approx(31.0, rel=0.02) and fit.zeta == pytest.approx(0.15, rel=0.1)
+    assert fit.mass == pytest.approx(700.0, rel=0.1) and fit.vehicle.c_p == pytest.approx(P.c_p, rel=0.2)
+    assert fit.stiffness == pytest.approx((2 * np.pi * 31.0) ** 2 * 700.0, rel=0.1)
     assert fit.error_train < 0.01 * fit_track(st, set(st.S), flexible=False).error_train
 
 
@@ -251,9 +255,9 @@ def test_track_fit_does_not_depend_on_the_order_of_its_keys():
     seed: the fit must give the same answer to the last bit in every process."""
     st = _track_statistics(runs=("r1", "r2", "r3"), scatter=0.3)
     keys = list(st.S)
-    a = fit_track(st, keys, flexible=True)
-    b = fit_track(st, keys[::-1], flexible=True)
-    assert (a.f_t, a.zeta, a.error_train) == (b.f_t, b.zeta, b.error_train)
+    a = fit_track(st, keys, flexible=True, vehicle=P)
+    b = fit_track(st, keys[::-1], flexible=True, vehicle=P)
+    assert (a.f_t, a.zeta, a.mass, a.error_train) == (b.f_t, b.zeta, b.mass, b.error_train)
     assert np.array_equal(a.coef, b.coef)
 
 

@@ -94,15 +94,19 @@ class Body:
 
 @dataclass(frozen=True)
 class Attachment:
-    """A point: on a body (at vehicle-frame ``x``) or on a prescribed input (``input``)."""
+    """A point: on a body (at vehicle-frame ``x``), on a prescribed input (``input``), on
+    both (the body's point plus ``gain`` x the input: a coordinate that is not the point's
+    own level, such as a wheelset's on a flexible track), or ``fixed`` (the ground)."""
 
     body: str | None = None
     x: float = 0.0
     input: str | None = None
+    fixed: bool = False
+    gain: float = 1.0  # of the input
 
     def __post_init__(self) -> None:
-        if (self.body is None) == (self.input is None):
-            raise ValueError("an attachment is on exactly one of a body or an input")
+        if self.fixed == (self.body is not None or self.input is not None):
+            raise ValueError("an attachment is fixed, or on a body, an input or both")
 
 
 @dataclass(frozen=True)
@@ -145,7 +149,8 @@ def _point_rows(bodies, dofs, att: Attachment, inputs=()):
     g = np.zeros(len(dofs))
     h = np.zeros(len(inputs))
     if att.input is not None:
-        h[list(inputs).index(att.input)] = 1.0
+        h[list(inputs).index(att.input)] = att.gain
+    if att.body is None:
         return g, h
     body = next((b for b in bodies if b.name == att.body), None)
     if body is None:

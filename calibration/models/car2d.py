@@ -60,10 +60,16 @@ class CarExtras:
         and inertia moved so that the whole keeps m_v, its centre at ``cog_offset`` and J_v
         about it; the equipment then changes nothing at low frequency, where it moves with
         the carbody, only around its mounts.
-    track_stiffness : [N/m] per wheelset: wheelsets are free bodies on the track (rail pads,
-        sleepers, ballast) of this stiffness, damping ratio ``track_damping_ratio`` with the
-        wheelset plus ``track_mass`` [kg] of rail and sleepers moving with it; the rail
-        input is then the support's level. None: wheelsets on a rigid rail.
+    track_stiffness : [N/m] per wheelset: a flexible track. Under each wheelset ``track_mass``
+        [kg] of rail and sleepers rests on the track's stiffness (rail pads, ballast) and its
+        damping, ``track_damping_ratio`` of the track mass's own critical damping; the rail
+        input is the rail's level at the wheel-rail contact (the irregularity between wheel
+        and rail), the wheelset on the rail. The wheelset then follows the level with
+        T = Z_t / (Z_t + Z_w), Z_t the track's dynamic stiffness and Z_w the wheelset's on
+        the vehicle (:func:`wheelset_dynamic_stiffness`): T dips at the track's own
+        frequency. The wheelset's coordinate is then the centre of mass of wheelset and
+        track mass; the wheelset itself is :func:`wheel_level_gain` x the rail level above
+        it. None: wheelsets on a rigid rail.
     """
 
     cog_offset: float = 0.0
@@ -76,7 +82,7 @@ class CarExtras:
     reservoir_corner_hz: float = 2.5
     node_mass: float = 1.0
     track_stiffness: float | None = None
-    track_damping_ratio: float = 0.2
+    track_damping_ratio: float = 0.5  # 70 kN s/m on a 20 MN/m track of 250 kg: a well-damped P2 resonance
     track_mass: float = 250.0
     bodies: tuple[Body, ...] = ()
     elements: tuple[SpringDamper, ...] = ()
@@ -216,6 +222,15 @@ def _carbody_rest(p: CarParameters, ex: CarExtras) -> tuple[float, float, float]
     return m, x, J
 
 
+def wheel_level_gain(p: CarParameters, extras: CarExtras) -> float:
+    """On a flexible track (``extras.track_stiffness``) a wheelset's coordinate is the centre
+    of mass of the wheelset and its track mass; the wheelset itself is that plus this
+    gain, m_t / (m_w + m_t), times the rail level under it (0 on a rigid rail)."""
+    if extras.track_stiffness is None:
+        return 0.0
+    return float(extras.track_mass / (p.m_w + extras.track_mass))
+
+
 def carbody_centre(p: CarParameters, extras: CarExtras | None = None) -> float:
     """[m] The rigid carbody's centre of mass in the vehicle frame: its body's ``x``, where
     its outputs' centre and its bending shape's middle are (ValueError when hung bodies leave
@@ -229,10 +244,12 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
     if wheelsets not in ("rail", "free"):
         raise ValueError(f"wheelsets must be 'rail' or 'free', not {wheelsets!r}")
     ex = CarExtras() if extras is None else extras
-    m_wheelset = p.m_w
     if ex.track_stiffness is not None:
-        wheelsets, m_wheelset, k_contact = "free", p.m_w + ex.track_mass, ex.track_stiffness
-        c_contact = 2 * ex.track_damping_ratio * np.sqrt(k_contact * m_wheelset)
+        if not (ex.track_stiffness > 0 and ex.track_mass > 0 and ex.track_damping_ratio >= 0):
+            raise ValueError(f"a flexible track needs a positive track_stiffness ({ex.track_stiffness}) and "
+                             f"track_mass ({ex.track_mass}) and a track_damping_ratio >= 0 "
+                             f"({ex.track_damping_ratio})")
+        wheelsets = "free"
     xb = bogie_positions(p)
     xw = wheelset_positions(p)
     modes = ()
@@ -259,11 +276,23 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
         bogie = f"bogie{1 + j // 2}"
         if wheelsets == "rail":
             below = Attachment(input=RAIL_INPUTS[j])
-        else:
-            bodies.append(Body(f"wheelset{j + 1}", m_wheelset, xw[j]))
+        elif ex.track_stiffness is None:
+            bodies.append(Body(f"wheelset{j + 1}", p.m_w, xw[j]))
             below = Attachment(f"wheelset{j + 1}", xw[j])
             elements.append(SpringDamper(f"contact{j + 1}", below, Attachment(input=RAIL_INPUTS[j]),
                                          k_contact, c_contact))
+        else:
+            # the wheelset rigidly on the rail, the track mass under it: with u the track's
+            # deflection and r the level, the wheelset is at u + r. Its coordinate y = u + a r,
+            # a = m_w / (m_w + m_t), is their centre of mass, and their inertia is (m_w + m_t) y''
+            # with no r'' term: the wheelset is at y + (1 - a) r, the track at y - a r.
+            a = 1.0 - wheel_level_gain(p, ex)
+            name = f"wheelset{j + 1}"
+            bodies.append(Body(name, p.m_w + ex.track_mass, xw[j]))
+            below = Attachment(name, xw[j], input=RAIL_INPUTS[j], gain=1.0 - a)
+            elements.append(SpringDamper(f"track{j + 1}", Attachment(name, xw[j], input=RAIL_INPUTS[j], gain=-a),
+                                         Attachment(fixed=True), ex.track_stiffness,
+                                         2 * ex.track_damping_ratio * np.sqrt(ex.track_stiffness * ex.track_mass)))
         elements.append(SpringDamper(f"primary{j + 1}", Attachment(bogie, xw[j]), below, p.k_p, p.c_p))
     return assemble(bodies + list(ex.bodies), elements + list(ex.elements), list(RAIL_INPUTS))
 
@@ -510,6 +539,23 @@ def frequency_response(asm: Assembly, outputs: list[Output], frequency: np.ndarr
     Hq = np.linalg.solve(*dynamic_stiffness(asm.K, asm.M, asm.C, asm.B_k, asm.B_c, w))  # (n_f, n_dof, n_in)
     rows, power = output_rows(asm, outputs)
     return (1j * w[:, None, None]) ** power[None, :, None] * (rows @ Hq)
+
+
+def wheelset_dynamic_stiffness(p: CarParameters, frequency: np.ndarray, wheelset: int) -> np.ndarray:
+    """[N/m] The seed's car's dynamic stiffness at wheelset ``wheelset`` (1-4) as its rail
+    sees it: the force its contact carries per unit of its vertical displacement at
+    ``frequency`` [Hz] (complex), its own inertia and the primary suspension, bogie and
+    carbody above it, the other wheelsets on the rail. A flexible track under it, of
+    dynamic stiffness Z_t, passes the rail's level as Z_t / (Z_t + Z_w)."""
+    stiff = 1e9  # [N/m] the other wheelsets' contacts: rigid against the primary suspension
+    asm = build_car(p, wheelsets="free", k_contact=stiff)
+    w = 2 * np.pi * np.asarray(frequency, float)
+    D, _ = dynamic_stiffness(asm.K, asm.M, asm.C, asm.B_k, asm.B_c, w)
+    j = asm.dof(f"wheelset{wheelset}_z")
+    D[:, j, j] -= stiff  # its own contact is the rail's side
+    rest = [i for i in range(len(asm.dofs)) if i != j]
+    coupled = np.linalg.solve(D[:, rest][:, :, rest], D[:, rest, j][:, :, None])[:, :, 0]
+    return D[:, j, j] - np.einsum("fr,fr->f", D[:, j, rest], coupled)
 
 
 def static_deflection(asm: Assembly, gravity: float = GRAVITY) -> np.ndarray:

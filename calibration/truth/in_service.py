@@ -43,7 +43,7 @@ from ..data.outputs import CampaignWriter, write_json_atomic
 from ..data.units import STANDARD_GRAVITY
 from ..models.assembly import Assembly, Attachment, Body, SpringDamper
 from ..models.car2d import (CarExtras, Output, build_car, damped_modes, frequencies_by_label, state_space,
-                            undamped_modes, wheelset_positions)
+                            undamped_modes, wheel_level_gain, wheelset_positions)
 from ..models.parameters import CarParameters
 from ..models.simulate import ModalSimulator
 from ..models.vehicles import INTERCITY_TRAILER, SEED_PRIOR_RANGES
@@ -146,6 +146,7 @@ class TruthCar:
     sensor_x: dict
     oor: tuple | None = None
     details: dict = field(default_factory=dict)
+    level_gain: float = 0.0  # on a flexible track: the wheelsets ride this x their rail level above their coordinate
 
     def wheel_deviation(self, j: int, s: np.ndarray):
         """Radius deviation of wheelset j at distance s and its first two s-derivatives."""
@@ -180,10 +181,9 @@ def truth_car(p: CarParameters, sensors: tuple[Sensor, ...], effect: EffectChoic
                    "orifice_damping_n_s_per_m": mag * p.k_s / (2 * np.pi * corner)}
     elif name == "track_flexibility":
         extras = CarExtras(track_stiffness=mag)
-        m = p.m_w + extras.track_mass
         details = {"track_stiffness_n_per_m": mag, "track_mass_kg": extras.track_mass,
                    "damping_ratio": extras.track_damping_ratio,
-                   "resonance_hz": float(np.sqrt(mag / m) / (2 * np.pi))}
+                   "track_frequency_hz": float(np.sqrt(mag / extras.track_mass) / (2 * np.pi))}
     elif name == "sensor_offset":
         sign = float(rng.choice([-1.0, 1.0]))
         for x in sensors:
@@ -204,7 +204,7 @@ def truth_car(p: CarParameters, sensors: tuple[Sensor, ...], effect: EffectChoic
         details = {"mass_kg": mag, "mount_hz": f_m, "damping_ratio": zeta, "x_m": x}
     elif name is not None:
         raise NotImplementedError(f"effect {name} is not simulated in in-service campaigns")
-    return TruthCar(p, build_car(p, extras=extras), sensor_x, oor, details)
+    return TruthCar(p, build_car(p, extras=extras), sensor_x, oor, details, wheel_level_gain(p, extras))
 
 
 def draw_truth_parameters(settings: InServiceSettings, rng: np.random.Generator) -> CarParameters:
@@ -317,6 +317,7 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
         v_m = np.interp(s_m, s_grid, v_grid)
         acc_m = v_m * np.interp(s_m, s_grid, np.gradient(v_grid, s_grid))
     axle = {x.name: np.empty(n) for x in sensors if x.body.startswith("axle")}
+    gain = car.level_gain
     for a in range(0, n, settings.chunk):
         b = min(n, a + settings.chunk)
         sc, vc, ac = s_m[a:b], v_m[a:b], acc_m[a:b]
@@ -327,8 +328,10 @@ def simulate_journey(run_id: str, line: Line, car: TruthCar, sensors: tuple[Sens
                 if flexible:  # the wheelset's own motion, plus the rails' cross level (rigid in roll)
                     _, dz0, d2z0 = line.level(sc + x.position[0])
                     _, dz1, d2z1 = line.level(sc + x.position[0], side=side)
+                    _, dr, d2r = car.wheel_deviation(j, sc)
+                    # the wheelset's coordinate is its and its track mass's centre; it rides gain x its input above
                     axle[x.name][a:b] = (y_all[a:b, index[f"wheelset{j + 1}"]] + vc * vc * (d2z1 - d2z0)
-                                         + ac * (dz1 - dz0))
+                                         + ac * (dz1 - dz0) + gain * (vc * vc * (d2z0 + d2r) + ac * (dz0 + dr)))
                 else:
                     _, dz, d2z = line.level(sc + x.position[0], side=side)
                     _, dr, d2r = car.wheel_deviation(j, sc)

@@ -14,8 +14,12 @@
  *   CAR_RESERVOIR  per air spring a reservoir: reservoir_ratio k_s in series with an orifice
  *                  damper of corner frequency reservoir_corner_hz, the node between them of
  *                  node_mass;
- *   CAR_TRACK      wheelsets as free bodies (m_w + track_mass) on the track's stiffness
- *                  track_stiffness and damping ratio track_damping_ratio;
+ *   CAR_TRACK      a flexible track: under each wheelset track_mass of rail and sleeper on
+ *                  the track's stiffness track_stiffness and damping (track_damping_ratio of
+ *                  the track mass's critical damping), z_rail_j the level at the wheel-rail
+ *                  contact, the wheelset on the rail. Its coordinate y is the centre of mass of
+ *                  wheelset and track mass (m_w + track_mass), the wheelset at y + (1 - a) z_j
+ *                  and the track at y - a z_j, a = m_w / (m_w + track_mass): no z_j'' term;
  *   CAR_N_HUNG     point masses hung under the carbody on one spring-damper each
  *                  (CAR_HUNG_VRS: their mass, x, mount stiffness and damping), part of m_v
  *                  when CAR_HUNG_IN_M_V (the rigid carbody keeps the rest).
@@ -29,8 +33,9 @@
  * the vertical wheel-rail force of each wheelset including the static load: the primary's
  * force on the wheelset plus its inertia force,
  *     F_j = -k_p (g_j (q_s + q) - w_j) - c_p (g_j q' - w_j') + m_w (g + w_j''),
- * w_j the wheelset's level (the rail's, z_j, on a rigid track; w_j'' then the slope of dz_j
- * over the step) and q_s the static deflection under gravity. */
+ * w_j the wheelset's level (the rail's, z_j, on a rigid track; its coordinate plus (1 - a) z_j
+ * on a flexible one; the z_j'' part of w_j'' the slope of dz_j over the step) and q_s the
+ * static deflection under gravity. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -103,7 +108,7 @@ static int check(const double *r, char *msg, size_t n) {
         {VR_reservoir_ratio, 0}, {VR_reservoir_corner_hz, 0}, {VR_node_mass, 0},
 #endif
 #if CAR_TRACK
-        {VR_track_stiffness, 0}, {VR_track_damping_ratio, 1}, {VR_track_mass, 1},
+        {VR_track_stiffness, 0}, {VR_track_damping_ratio, 1}, {VR_track_mass, 0},
 #endif
     };
     for (size_t i = 0; i < sizeof checks / sizeof checks[0]; i++)
@@ -216,9 +221,10 @@ static void point_row(const Geometry *geo, int b, double x, double *g) {
     if (CAR_BENDING && b == 0) g[f + 2] = bending_shape(geo, x - geo->x[b]);
 }
 
-/* spring-damper between body point (bt, xt) and body point (bb, xb) or rail input `input` */
+/* spring-damper between body point (bt, xt) and body point (bb, xb) (or ground, bb < 0) plus
+ * `gain` x rail input `input` (none: input < 0) */
 static void add_element(double *K, double *Cd, double *Bk, double *Bc, const Geometry *geo, int bt, double xt, int bb,
-                        double xb, int input, double k, double c) {
+                        double xb, int input, double gain, double k, double c) {
     double g[NQ], gb[NQ];
     point_row(geo, bt, xt, g);
     if (bb >= 0) {
@@ -231,14 +237,25 @@ static void add_element(double *K, double *Cd, double *Bk, double *Bc, const Geo
             Cd[i * NQ + j] += c * g[i] * g[j];
         }
     if (input >= 0)
-        for (int i = 0; i < NQ; i++) { /* h = -e_input (the rail is the bottom attachment) */
-            Bk[i * NW + input] += k * g[i];
-            Bc[i * NW + input] += c * g[i];
+        for (int i = 0; i < NQ; i++) { /* h = -gain e_input (the rail is at the bottom attachment) */
+            Bk[i * NW + input] += gain * k * g[i];
+            Bc[i * NW + input] += gain * c * g[i];
         }
 }
 
 /* The wheelset j's body (free wheelsets), or -1 on the rail. */
 static int wheel_body(int j) { return CAR_TRACK ? B_WHEEL + j : -1; }
+
+/* On a flexible track: m_t / (m_w + m_t), the share of its rail level a wheelset rides above
+ * its coordinate (calibration.models.car2d.wheel_level_gain); 1 on the rail (no coordinate). */
+static double wheel_gain(const double *r) {
+#if CAR_TRACK
+    return r[VR_track_mass] / (r[VR_m_w] + r[VR_track_mass]);
+#else
+    (void)r;
+    return 1.0;
+#endif
+}
 
 int model_build(const double *r, LtiSystem *sys, char *msg, size_t msg_len) {
     for (int j = 0; j < NW; j++)
@@ -265,26 +282,29 @@ int model_build(const double *r, LtiSystem *sys, char *msg, size_t msg_len) {
     }
 #endif
     for (int i = 0; i < 2; i++)
-        add_element(K, Cd, Bk, Bc, &geo, 0, geo.x[1 + i], 1 + i, geo.x[1 + i], -1, r[VR_k_s], r[VR_c_s]);
+        add_element(K, Cd, Bk, Bc, &geo, 0, geo.x[1 + i], 1 + i, geo.x[1 + i], -1, 0.0, r[VR_k_s], r[VR_c_s]);
 #if CAR_RESERVOIR
     for (int i = 0; i < 2; i++) {
         const double k_r = r[VR_reservoir_ratio] * r[VR_k_s], c_o = k_r / (TWO_PI * r[VR_reservoir_corner_hz]);
-        add_element(K, Cd, Bk, Bc, &geo, 0, geo.x[1 + i], B_RES + i, geo.x[1 + i], -1, k_r, 0.0);
-        add_element(K, Cd, Bk, Bc, &geo, B_RES + i, geo.x[1 + i], 1 + i, geo.x[1 + i], -1, 0.0, c_o);
+        add_element(K, Cd, Bk, Bc, &geo, 0, geo.x[1 + i], B_RES + i, geo.x[1 + i], -1, 0.0, k_r, 0.0);
+        add_element(K, Cd, Bk, Bc, &geo, B_RES + i, geo.x[1 + i], 1 + i, geo.x[1 + i], -1, 0.0, 0.0, c_o);
     }
 #endif
+    const double above = wheel_gain(r); /* the wheelset rides this x its rail level above its coordinate */
     for (int j = 0; j < NW; j++) {
         const int w = wheel_body(j);
 #if CAR_TRACK
-        const double k = r[VR_track_stiffness];
-        add_element(K, Cd, Bk, Bc, &geo, w, geo.xw[j], -1, 0.0, j, k,
-                    2 * r[VR_track_damping_ratio] * sqrt(k * geo.mass[w]));
+        const double k = r[VR_track_stiffness], m_t = r[VR_track_mass];
+        add_element(K, Cd, Bk, Bc, &geo, w, geo.xw[j], -1, 0.0, j, 1.0 - above, k,
+                    2 * r[VR_track_damping_ratio] * sqrt(k * m_t));
+        add_element(K, Cd, Bk, Bc, &geo, 1 + j / 2, geo.xw[j], w, geo.xw[j], j, above, r[VR_k_p], r[VR_c_p]);
+#else
+        add_element(K, Cd, Bk, Bc, &geo, 1 + j / 2, geo.xw[j], -1, 0.0, j, 1.0, r[VR_k_p], r[VR_c_p]);
 #endif
-        add_element(K, Cd, Bk, Bc, &geo, 1 + j / 2, geo.xw[j], w, geo.xw[j], w >= 0 ? -1 : j, r[VR_k_p], r[VR_c_p]);
     }
 #if CAR_N_HUNG > 0
     for (int h = 0; h < CAR_N_HUNG; h++)
-        add_element(K, Cd, Bk, Bc, &geo, 0, geo.x[B_HUNG + h], B_HUNG + h, geo.x[B_HUNG + h], -1, r[HUNG_VR[h][2]],
+        add_element(K, Cd, Bk, Bc, &geo, 0, geo.x[B_HUNG + h], B_HUNG + h, geo.x[B_HUNG + h], -1, 0.0, r[HUNG_VR[h][2]],
                     r[HUNG_VR[h][3]]);
 #endif
     double minv[NQ];
@@ -347,15 +367,15 @@ int model_build(const double *r, LtiSystem *sys, char *msg, size_t msg_len) {
                 Crow[NQ + i] = -r[VR_c_p] * g[i];
                 static_primary -= r[VR_k_p] * g[i] * qs[i];
             }
-            if (w >= 0) { /* the wheelset's own acceleration */
+            if (w >= 0) { /* the coordinate's acceleration */
                 const int f = geo.first[w];
                 for (int i = 0; i < nx2; i++) Crow[i] += r[VR_m_w] * ax[f * nx2 + i];
                 for (int i = 0; i < 2 * NW; i++) Drow[i] += r[VR_m_w] * aw[f * 2 * NW + i];
-            } else {
-                Drow[j] = r[VR_k_p];
-                Drow[NW + j] = r[VR_c_p];
-                Dsrow[NW + j] = r[VR_m_w];
             }
+            /* the share of the rail level the wheelset rides (all of it on the rail) */
+            Drow[j] += above * r[VR_k_p];
+            Drow[NW + j] += above * r[VR_c_p];
+            Dsrow[NW + j] += above * r[VR_m_w];
             sys->y0[o] = static_primary + r[VR_m_w] * MODEL_GRAVITY;
             break;
         }

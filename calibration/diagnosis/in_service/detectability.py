@@ -207,11 +207,10 @@ def _wheel_limit(data: DiagnosisData, bar: float) -> Limit:
 
 def _track_limit(data: DiagnosisData, base: ResponseFit, bar: float) -> Limit:
     s = data.settings.track
-    m_eff = base.parameters.m_w + _EXTRAS.track_mass
-    zeta = _EXTRAS.track_damping_ratio
-    k_of = lambda f_t: float((2 * np.pi * f_t) ** 2 * m_eff)  # noqa: E731
+    m_t, zeta = _EXTRAS.track_mass, _EXTRAS.track_damping_ratio
+    k_of = lambda f_t: float((2 * np.pi * f_t) ** 2 * m_t)  # noqa: E731
     mag = Magnitude("track_stiffness", "N/m", k_of(s.f_t_range[1]), k_of(s.f_t_range[0]))
-    got = collapse_shift(data.stats, set(data.stats.S), s)
+    got = collapse_shift(data.stats, set(data.stats.S), s, vehicle=base.parameters)
     if got is None:
         return Limit("track_flexibility", mag.parameter, mag.unit, None, False,
                      "all data lie in one speed bin: a track resonance shows only across speeds", "below")
@@ -219,21 +218,21 @@ def _track_limit(data: DiagnosisData, base: ResponseFit, bar: float) -> Limit:
     floor = np.maximum(floor, 0.0)
 
     def judge(k: float) -> tuple[float, float]:
-        up, sd = shift(float(np.sqrt(k / m_eff) / (2 * np.pi)), zeta)
+        up, sd = shift(float(np.sqrt(k / m_t) / (2 * np.pi)), zeta, m_t)
         before = floor + np.maximum(up, 0.0)
         g = np.where(before > 0, (np.maximum(up, 0.0) - Z * sd) / np.maximum(before, 1e-300), 0.0)
         c = int(np.argmax(g))
         return float(g[c]), float(up[c] / max(Z * sd[c], 1e-300))
 
     limit, strong, observable = search(mag, judge, bar)
-    held = f"damping ratio {zeta:g}, moving mass {m_eff:.0f} kg per wheelset"
+    held = f"damping ratio {zeta:g}, track mass {m_t:.0f} kg per wheelset"
     if limit is None:
-        why = (f"not detectable within its range {mag.strong:.3g}-{mag.weak:.3g} N/m (track resonance "
+        why = (f"not detectable within its range {mag.strong:.3g}-{mag.weak:.3g} N/m (the track's own frequency "
                f"{s.f_t_range[0]:g}-{s.f_t_range[1]:g} Hz; {held}): the axle boxes' collapse over this campaign's "
                "speeds would not change enough")
     else:
-        why = (f"track stiffness {limit:.3g} N/m and below (resonance "
-               f"{np.sqrt(limit / m_eff) / (2 * np.pi):.0f} Hz; {held}) would gain {bar:.0%} on the axle boxes' "
+        why = (f"track stiffness {limit:.3g} N/m and below (the track's own frequency "
+               f"{np.sqrt(limit / m_t) / (2 * np.pi):.0f} Hz; {held}) would gain {bar:.0%} on the axle boxes' "
                "collapse held out by speed")
     return Limit("track_flexibility", mag.parameter, mag.unit, limit, observable or limit is not None, why, "below")
 

@@ -166,9 +166,10 @@ class Extension:
     @property
     def n_params(self) -> int:
         """Parameters the extension fits (a wheel polygon: wavelength, amplitude, wheelset;
-        a track: resonance and damping; loads per run count as one, their spread: a held-out
-        run is judged at loads fitted on its other speed bins, so they buy nothing there)."""
-        return {"wheel": 3, "track": 2}.get(self.kind, len(self.params) + self.per_run)
+        a track: its mass, own frequency and damping and the primary damping; loads per run
+        count as one, their spread: a held-out run is judged at loads fitted on its other
+        speed bins, so they buy nothing there)."""
+        return {"wheel": 3, "track": 4}.get(self.kind, len(self.params) + self.per_run)
 
 
 def floor_params(lay: Layout) -> tuple[ParamRange, ...]:
@@ -238,7 +239,8 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
     Extension("wheel_out_of_round", "wheel",
               "polygonal wheel on one wheelset of the leading bogie: wavelength, radius amplitude, wheelset"),
     Extension("track_flexibility", "track",
-              "wheelsets on a flexible track: track resonance frequency and damping ratio",
+              "wheelsets on a flexible track: the track mass under them, its own frequency and damping ratio "
+              "(and the primary damping above them)",
               normal_above=("track_stiffness_n_per_m", SOFT_TRACK_N_PER_M)),
 )}
 

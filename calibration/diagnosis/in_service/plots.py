@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ...models.car2d import wheelset_dynamic_stiffness
 from ...data.outputs import save_figure
 from .response import response_nrp
 from .track import transmissibility2
@@ -48,6 +49,7 @@ def _track_collapse(d: InServiceDiagnosis, path: Path) -> Path:
     keys = {k for k in stats.S if k[0] in d.heldout_runs}
     fig, ax = plt.subplots(figsize=(9, 4.5))
     i = stats.channels.index("axle1_mean")
+    t2 = transmissibility2(f, wheelset_dynamic_stiffness(fit.vehicle, f, 1), fit.f_t, fit.zeta, fit.mass)
     for vb in stats.speed_bins:
         kk = stats.ordered({k for k in keys if k[1] == vb})
         if not kk:
@@ -56,12 +58,12 @@ def _track_collapse(d: InServiceDiagnosis, path: Path) -> Path:
         P = sum(stats.S[k][:, i, i].real for k in kk) / stats.seconds_of(kk) / bw
         kap = f / v
         line, = ax.loglog(kap, P * v / (2 * np.pi * f) ** 4, lw=0.6, label=f"{v:.0f} m/s, as measured")
-        ax.loglog(kap, P * v / (2 * np.pi * f) ** 4 / transmissibility2(f, fit.f_t, fit.zeta), lw=1.2,
+        ax.loglog(kap, P * v / (2 * np.pi * f) ** 4 / t2, lw=1.2,
                   color=line.get_color(), ls="--")
     ax.set_xlabel("wavenumber [1/m]")
     ax.set_ylabel("level PSD [m^2 / (1/m)]")
     ax.set_title(f"axle box 1: rigid-rail collapse (solid) and with the fitted track "
-                 f"({fit.f_t:.1f} Hz, zeta {fit.zeta:.2f}, dashed)", fontsize=9)
+                 f"({fit.f_t:.1f} Hz, zeta {fit.zeta:.2f}, {fit.mass:.0f} kg, dashed)", fontsize=9)
     ax.legend(fontsize=7)
     return save_figure(fig, path)
 
