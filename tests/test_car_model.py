@@ -91,8 +91,8 @@ def test_a_wheelset_on_a_flexible_track_follows_the_level_through_the_tracks_and
 
 def test_a_wheelsets_dynamic_stiffness_is_its_mass_at_high_frequency_and_the_car_above_it_at_low():
     """Z_w -> -w^2 m_w well above the primary suspension's frequencies (the wheelset alone);
-    at low frequency the wheelset carries its share of the car through the suspension, a
-    stiffness that stays positive; its imaginary part is the suspension's damping (>= 0)."""
+    at low frequency the car above, free to move with this wheelset's contact gone, shows as
+    a mass (negative real part); its imaginary part is the suspension's damping (>= 0)."""
     from calibration.models.car2d import wheelset_dynamic_stiffness
 
     f = np.array([0.3, 2.0, 10.0, 200.0, 2000.0])

@@ -17,7 +17,7 @@ import pytest
 from conftest import CAR_FMU_SPEED as SPEED
 from conftest import CAR_FMU_START as START
 
-from calibration.models.car2d import CarExtras, build_car, hung_body
+from calibration.models.car2d import CarExtras, build_car, hung_body, wheelset_positions
 from calibration.models.vehicles import INTERCITY_TRAILER as CAR
 from calibration.models.vehicles import VEHICLES
 from fmu_src.reference import car_reference, nrmse, smooth_profile
@@ -180,12 +180,21 @@ def test_equipment_carved_out_of_m_v_leaves_the_whole_carbody_as_weighed():
 
 def test_on_a_rail_rising_forward_the_extended_car_starts_relaxed_and_nose_up():
     """Rail level = a s: every body of the extended car rests at the rail level under its
-    centre, pitches by -a, the carbody unbent (the wheelsets on the relaxed track too)."""
-    a, start = 2e-3, 50.0
+    centre, pitches by -a, the carbody unbent; the wheelsets ride on the relaxed track, the
+    track masses at zero, moving as railcal's static start has it (the centre of mass of
+    wheelset and track mass at rest: the track down at m_w / (m_w + m_t) of the rail's rate,
+    the wheelset up at the rest of it)."""
+    a, start, speed = 2e-3, 50.0, 10.0
     s = np.linspace(0.0, 200.0, 81)
     ex = EXTENDED["all"]
-    mbs, h = build_car_exudyn(CAR, rail=RailInput(s, a * s, speed=10.0, start=start), extras=ex)
+    mbs, h = build_car_exudyn(CAR, rail=RailInput(s, a * s, speed=speed, start=start), extras=ex)
     q = mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Initial)
+    v = mbs.systemData.GetODE2Coordinates_t(configuration=exu.ConfigurationType.Initial)
+    share = CAR.m_w / (CAR.m_w + ex.track_mass)
+    for j, xw in enumerate(wheelset_positions(CAR), start=1):
+        track, wheel = (mbs.GetNodeODE2Index(h.nodes[f"{n}{j}"]) for n in ("track", "wheelset"))
+        assert (q[track], v[track]) == pytest.approx((0.0, -share * a * speed), abs=1e-15)
+        assert (q[wheel], v[wheel]) == pytest.approx((a * (start + xw), (1 - share) * a * speed), rel=1e-12)
     x = {b.name: b.x for b in build_car(CAR, extras=ex).bodies}
     expected = {"carbody_bending": 0.0}
     for body, xb in x.items():

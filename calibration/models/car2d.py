@@ -66,8 +66,9 @@ class CarExtras:
         input is the rail's level at the wheel-rail contact (the irregularity between wheel
         and rail), the wheelset on the rail. The wheelset then follows the level with
         T = Z_t / (Z_t + Z_w), Z_t the track's dynamic stiffness and Z_w the wheelset's on
-        the vehicle (:func:`wheelset_dynamic_stiffness`): T dips at the track's own
-        frequency. The wheelset's coordinate is then the centre of mass of wheelset and
+        the vehicle (:func:`wheelset_dynamic_stiffness`): T falls towards m_t / (m_t + m_w)
+        above the track's own frequency, with a dip near it on a lightly damped track. The
+        wheelset's coordinate is then the centre of mass of wheelset and
         track mass; the wheelset itself is :func:`wheel_level_gain` x the rail level above
         it. None: wheelsets on a rigid rail.
     """
@@ -545,15 +546,15 @@ def wheelset_dynamic_stiffness(p: CarParameters, frequency: np.ndarray, wheelset
     """[N/m] The seed's car's dynamic stiffness at wheelset ``wheelset`` (1-4) as its rail
     sees it: the force its contact carries per unit of its vertical displacement at
     ``frequency`` [Hz] (complex), its own inertia and the primary suspension, bogie and
-    carbody above it, the other wheelsets on the rail. A flexible track under it, of
+    carbody above it, the other wheelsets held on a rigid rail. A flexible track under it, of
     dynamic stiffness Z_t, passes the rail's level as Z_t / (Z_t + Z_w)."""
-    stiff = 1e9  # [N/m] the other wheelsets' contacts: rigid against the primary suspension
-    asm = build_car(p, wheelsets="free", k_contact=stiff)
+    asm = build_car(p, wheelsets="free", k_contact=1.0)
     w = 2 * np.pi * np.asarray(frequency, float)
     D, _ = dynamic_stiffness(asm.K, asm.M, asm.C, asm.B_k, asm.B_c, w)
     j = asm.dof(f"wheelset{wheelset}_z")
-    D[:, j, j] -= stiff  # its own contact is the rail's side
-    rest = [i for i in range(len(asm.dofs)) if i != j]
+    D[:, j, j] -= 1.0  # its own contact is the rail's side
+    # the other wheelsets on a rigid rail do not move: their coordinates drop out
+    rest = [i for i, d in enumerate(asm.dofs) if i != j and not d.startswith("wheelset")]
     coupled = np.linalg.solve(D[:, rest][:, :, rest], D[:, rest, j][:, :, None])[:, :, 0]
     return D[:, j, j] - np.einsum("fr,fr->f", D[:, j, rest], coupled)
 

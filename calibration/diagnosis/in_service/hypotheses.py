@@ -192,8 +192,9 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         before, after = np.maximum(before, 0.0), np.maximum(after, 0.0)
         names = ("axle1_mean", "axle2_mean")
         params = {**fit.to_json(), "track_stiffness_n_per_m": fit.stiffness}
+        # the transmissibility was fitted under the primary damping found with it, not the baseline's
         model = {"extras": {"track_stiffness": fit.stiffness, "track_damping_ratio": fit.zeta,
-                            "track_mass": fit.mass}}
+                            "track_mass": fit.mass}, "parameters": {"c_p": fit.vehicle.c_p}}
         mass_range = tuple(np.array(s.track.mass_ratio_range) * vehicle.m_w)
         at = [n for n, v, (lo, hi) in (("track_frequency_hz", fit.f_t, s.track.f_t_range),
                                        ("damping_ratio", fit.zeta, s.track.zeta_range),

@@ -14,8 +14,8 @@ under the contact rail and sleepers (mass m_t) rest on the track's stiffness k a
 
 Z_w the vehicle's dynamic stiffness at the wheelset
 (:func:`~calibration.models.car2d.wheelset_dynamic_stiffness`, from the baseline's
-parameters) and f_t = w_t / 2 pi the track's own frequency, where T dips. T is fixed in
-frequency, so the collapse fails in a way that moves through the wavenumber spectrum with
+parameters) and f_t = w_t / 2 pi the track's own frequency. Above it T falls towards
+m_t / (m_t + m_w), with a dip near f_t on a lightly damped track. T is fixed in frequency, so the collapse fails in a way that moves through the wavenumber spectrum with
 speed. The model here fits log S(kappa) as a piecewise-linear function of log kappa
 (knots every ``knot_decades``) by weighted linear least squares, with T = 1 (baseline) or
 with (f_t, zeta, m_t / m_w) and the primary suspension's damping searched on a grid and
