@@ -90,19 +90,21 @@ class _Data:
     logk: np.ndarray
     f: np.ndarray
     channel: np.ndarray  # 0 / 1
+    cell: np.ndarray  # each point's (channel, frequency) cell: T is a function of the cell alone
+    cell_f: np.ndarray  # [Hz] the cells' frequencies
+    cell_channel: np.ndarray
     vehicle: CarParameters | None  # the wheelsets' vehicle; None: a rigid rail only
-    z_w: np.ndarray | None  # its dynamic stiffness at each point's wheelset [N/m]
+    z_w: np.ndarray | None  # its dynamic stiffness at each cell's wheelset [N/m]
 
 
 def _z_w(d: _Data, c_p: float) -> np.ndarray:
-    """The vehicle's dynamic stiffness at each point's wheelset with primary damping ``c_p``
+    """The vehicle's dynamic stiffness at each cell's wheelset with primary damping ``c_p``
     [N s/m] (axle-box channel c is on wheelset c + 1)."""
-    z_w = np.zeros(d.f.size, complex)
+    z_w = np.zeros(d.cell_f.size, complex)
     vehicle = replace(d.vehicle, c_p=float(c_p))
     for c in range(len(CHANNELS)):
-        m = d.channel == c
-        uniq, back = np.unique(d.f[m], return_inverse=True)
-        z_w[m] = wheelset_dynamic_stiffness(vehicle, uniq, c + 1)[back]
+        m = d.cell_channel == c
+        z_w[m] = wheelset_dynamic_stiffness(vehicle, d.cell_f[m], c + 1)
     return z_w
 
 
@@ -125,7 +127,8 @@ def _collect(stats: Statistics, keys, settings: TrackSettings, vehicle: CarParam
             cs.append(np.full(ok.sum(), c))
             vs.append(LOG10_BIN_VARIANCE / np.maximum(nbins[ok] * stats.seconds[key] / stats.segment_s, 1.0))
     y, w, k, f_, c_, var = (np.concatenate(a) for a in (ys, ws, ks, fs, cs, vs))
-    d = _Data(y, w, var, k, f_, c_, vehicle, None)
+    cells, cell = np.unique(np.stack([c_, f_]), axis=1, return_inverse=True)
+    d = _Data(y, w, var, k, f_, c_, cell.ravel(), cells[1], cells[0].astype(int), vehicle, None)
     return d if vehicle is None else replace(d, z_w=_z_w(d, vehicle.c_p))
 
 
@@ -162,7 +165,18 @@ class _Normal:
         diag += 1e-9 * diag.mean()
         self.ab = np.zeros((3, n))
         self.ab[0, 1:], self.ab[1], self.ab[2, :-1] = off, diag, off
+        self.reg = 1e-9 * diag.mean() / (1 + 1e-9)
         self.wsum = float(np.sum(w))
+        # sums over each (channel, frequency) cell, so that a fit through a transmissibility,
+        # a function of the cell, costs a solve over knots and cells, not over every point
+        m = d.cell_f.size
+        self.cell_rhs = np.zeros((n, m))
+        np.add.at(self.cell_rhs, (i, d.cell), w * (1 - t))
+        np.add.at(self.cell_rhs, (i + 1, d.cell), w * t)
+        self.cell_w = np.bincount(d.cell, w, m)
+        self.cell_wy = np.bincount(d.cell, w * d.y, m)
+        self.wyy = float(np.sum(w * d.y * d.y))
+        self.rhs_y = np.bincount(i, w * d.y * (1 - t), n) + np.bincount(i + 1, w * d.y * t, n)
 
     def solve(self, y: np.ndarray):
         n, w, i, t = self.knots.size, self.d.w, self.i, self.t
@@ -170,6 +184,15 @@ class _Normal:
         coef = scipy.linalg.solve_banded((1, 1), self.ab, rhs)
         r = coef[i] * (1 - t) + coef[i + 1] * t - y
         return coef, float(np.sum(w * r * r) / self.wsum)
+
+    def solve_cells(self, offset: np.ndarray):
+        """:meth:`solve` of the data less ``offset`` per cell, from the cells' sums: the misfit
+        is sum w y'^2 - coef . rhs less the regularisation's share (the normal equations
+        hold at the solution), y' = y - offset."""
+        rhs = self.rhs_y - self.cell_rhs @ offset
+        coef = scipy.linalg.solve_banded((1, 1), self.ab, rhs)
+        wyy = self.wyy - 2 * self.cell_wy @ offset + self.cell_w @ (offset * offset)
+        return coef, float(max(wyy - coef @ rhs - self.reg * (coef @ coef), 0.0) / self.wsum)
 
 
 @dataclass(frozen=True)
@@ -197,14 +220,19 @@ class TrackFit:
                 "primary_damping_n_s_per_m": None if self.vehicle is None else self.vehicle.c_p}
 
 
+def _log_t2_cells(d: _Data, f_t, zeta, mass, z_w=None) -> np.ndarray:
+    return np.log10(transmissibility2(d.cell_f, d.z_w if z_w is None else z_w, f_t, zeta, mass))
+
+
 def _log_t2(d: _Data, f_t, zeta, mass, z_w=None) -> np.ndarray:
-    return np.log10(transmissibility2(d.f, d.z_w if z_w is None else z_w, f_t, zeta, mass))
+    """log10 |T|^2 at each point."""
+    return _log_t2_cells(d, f_t, zeta, mass, z_w)[d.cell]
 
 
 def _solve(ne: _Normal, f_t, zeta, mass, z_w=None):
-    d = ne.d
-    y = d.y if f_t is None else d.y - _log_t2(d, f_t, zeta, mass, z_w)
-    return ne.solve(y)
+    if f_t is None:
+        return ne.solve(ne.d.y)
+    return ne.solve_cells(_log_t2_cells(ne.d, f_t, zeta, mass, z_w))
 
 
 def primary_damping_range(vehicle: CarParameters, settings: TrackSettings) -> tuple[float, float]:
@@ -325,7 +353,7 @@ def collapse_shift(stats: Statistics, keys, settings: TrackSettings = TrackSetti
     def shift(f_t: float, zeta: float, mass: float) -> tuple[np.ndarray, np.ndarray]:
         up, var = np.zeros(len(CHANNELS)), np.zeros(len(CHANNELS))
         for ne, d, t, knots, r0, seen in folds:
-            coef, _ = ne.solve(d.y + _log_t2(d, f_t, zeta, mass))
+            coef, _ = ne.solve_cells(-_log_t2_cells(d, f_t, zeta, mass))
             r = _evaluate(coef, t.logk, knots) - t.y - _log_t2(t, f_t, zeta, mass)
             for c in range(len(CHANNELS)):
                 m = (t.channel == c) & seen
