@@ -150,6 +150,8 @@ def _table(folder: str) -> list[dict]:
     import importlib.util
 
     path = Path(__file__).resolve().parents[1] / "tests" / "test_diagnosis.py"
+    if str(path.parent) not in sys.path:  # the test file imports its helpers (gradient_checks) from there
+        sys.path.insert(0, str(path.parent))
     spec = importlib.util.spec_from_file_location("test_diagnosis_table", path)
     table = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(table)
