@@ -15,33 +15,30 @@ under the contact rail and sleepers (mass m_t) rest on the track's stiffness k a
 Z_w the vehicle's dynamic stiffness at the wheelset
 (:func:`~calibration.models.car2d.wheelset_dynamic_stiffness`, from the baseline's
 parameters) and f_t = w_t / 2 pi the track's own frequency. Above it T falls towards
-m_t / (m_t + m_w), with a dip near f_t on a lightly damped track. T is fixed in frequency, so the collapse fails in a way that moves through the wavenumber spectrum with
-speed. The model here fits log S(kappa) as a piecewise-linear function of log kappa
-(knots every ``knot_decades``) by weighted linear least squares, with T = 1 (baseline) or
-with (f_t, zeta, m_t / m_w) and the primary suspension's damping searched on a grid and
+m_t / (m_t + m_w), with a dip near f_t on a lightly damped track. T is fixed in frequency,
+so the collapse fails in a way that moves through the wavenumber spectrum with speed.
+
+The model here fits log S(kappa) as a piecewise-linear function of log kappa (knots every
+``knot_decades``) by weighted linear least squares, with T = 1 (baseline) or with
+(f_t, zeta, m_t / m_w) and the primary suspension's damping searched on a grid and
 refined; the error is the mean squared log10 misfit. The primary damping is searched
 because Z_w depends on it around the track's resonance and a baseline fitted to the bogie
-and carbody rarely determines it (it is often a default): on development campaigns of the
-independent truth, a primary damping of 12 kN s/m where the truth's was 29.4 put the
-track's stiffness 25-70 % high; searched, it came within 5 %. Both axle-box means are fitted with one S (they
-run over the same rail). Lines fixed in wavenumber (sleepers, welds) collapse either way.
-
-A lumped form (the wheelset and a track mass together on one spring, the level under the
-spring) was used first; on the independent truth's soft tracks its one resonance could
-not follow the dip at the track's own frequency (docs/methods/diagnosis-in-service.md).
+and carbody seldom determines it (it is often a default), and a wrong one moves the
+stiffness found (docs/methods/diagnosis-in-service.md). Both axle-box means are fitted
+with one S (they run over the same rail). Lines fixed in wavenumber (sleepers, welds)
+collapse either way.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-
 import itertools
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-from calibration.models.car2d import wheelset_dynamic_stiffness
-from calibration.models.parameters import CarParameters
+from ...models.car2d import wheelset_dynamic_stiffness
+from ...models.parameters import CarParameters
 
 from .records import Statistics
 
@@ -162,10 +159,10 @@ class _Normal:
         n, w, i, t = knots.size, d.w, self.i, self.t
         diag = np.bincount(i, w * (1 - t) ** 2, n) + np.bincount(i + 1, w * t * t, n)
         off = np.bincount(i, w * (1 - t) * t, n)[:-1]
-        diag += 1e-9 * diag.mean()
+        self.reg = 1e-9 * diag.mean()
+        diag += self.reg
         self.ab = np.zeros((3, n))
         self.ab[0, 1:], self.ab[1], self.ab[2, :-1] = off, diag, off
-        self.reg = 1e-9 * diag.mean() / (1 + 1e-9)
         self.wsum = float(np.sum(w))
         # sums over each (channel, frequency) cell, so that a fit through a transmissibility,
         # a function of the cell, costs a solve over knots and cells, not over every point
