@@ -68,9 +68,9 @@ class CarExtras:
         T = Z_t / (Z_t + Z_w), Z_t the track's dynamic stiffness and Z_w the wheelset's on
         the vehicle (:func:`wheelset_dynamic_stiffness`): T falls towards m_t / (m_t + m_w)
         above the track's own frequency, with a dip near it on a lightly damped track. The
-        wheelset's coordinate is then the centre of mass of wheelset and
-        track mass; the wheelset itself is :func:`wheel_level_gain` x the rail level above
-        it. None: wheelsets on a rigid rail.
+        wheelset's coordinate is then the centre of mass of wheelset and track mass; the
+        wheelset itself is :func:`wheel_level_gain` x the rail level above it. None:
+        wheelsets on a rigid rail.
     """
 
     cog_offset: float = 0.0
@@ -284,14 +284,14 @@ def build_car(p: CarParameters, *, wheelsets: str = "rail", k_contact: float = 1
                                          k_contact, c_contact))
         else:
             # the wheelset rigidly on the rail, the track mass under it: with u the track's
-            # deflection and r the level, the wheelset is at u + r. Its coordinate y = u + a r,
-            # a = m_w / (m_w + m_t), is their centre of mass, and their inertia is (m_w + m_t) y''
-            # with no r'' term: the wheelset is at y + (1 - a) r, the track at y - a r.
-            a = 1.0 - wheel_level_gain(p, ex)
+            # deflection and r the level, the wheelset is at u + r. Its coordinate, their centre
+            # of mass y = u + r m_w / (m_w + m_t), has the inertia (m_w + m_t) y'' with no r''
+            # term: the wheelset is at y + g r, the track at y - (1 - g) r, g = m_t / (m_w + m_t).
+            g = wheel_level_gain(p, ex)
             name = f"wheelset{j + 1}"
             bodies.append(Body(name, p.m_w + ex.track_mass, xw[j]))
-            below = Attachment(name, xw[j], input=RAIL_INPUTS[j], gain=1.0 - a)
-            elements.append(SpringDamper(f"track{j + 1}", Attachment(name, xw[j], input=RAIL_INPUTS[j], gain=-a),
+            below = Attachment(name, xw[j], input=RAIL_INPUTS[j], gain=g)
+            elements.append(SpringDamper(f"track{j + 1}", Attachment(name, xw[j], input=RAIL_INPUTS[j], gain=g - 1.0),
                                          Attachment(fixed=True), ex.track_stiffness,
                                          2 * ex.track_damping_ratio * np.sqrt(ex.track_stiffness * ex.track_mass)))
         elements.append(SpringDamper(f"primary{j + 1}", Attachment(bogie, xw[j]), below, p.k_p, p.c_p))
