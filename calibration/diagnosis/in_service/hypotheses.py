@@ -23,7 +23,7 @@ from .evidence import (DiagnosisData, Evidence, channel_evidence, response_error
 from .extensions import Extension
 from .response import ResponseFit, fit_response
 from .settings import DiagnosisSettings
-from .track import TrackFit, fit_track, primary_damping_range, track_cross_validation, track_error
+from .track import TrackFit, fit_track, search_ranges, track_cross_validation, track_error
 from .wheels import LineSpectrum, WheelPolygon, fit_polygon, line_spectrum, polygon_error
 
 
@@ -195,13 +195,8 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         # the transmissibility was fitted under the primary damping found with it, not the baseline's
         model = {"extras": {"track_stiffness": fit.stiffness, "track_damping_ratio": fit.zeta,
                             "track_mass": fit.mass}, "parameters": {"c_p": fit.vehicle.c_p}}
-        mass_range = tuple(np.array(s.track.mass_ratio_range) * vehicle.m_w)
-        at = [n for n, v, (lo, hi) in (("track_frequency_hz", fit.f_t, s.track.f_t_range),
-                                       ("damping_ratio", fit.zeta, s.track.zeta_range),
-                                       ("track_mass_kg", fit.mass, mass_range),
-                                       ("primary_damping_n_s_per_m", fit.vehicle.c_p,
-                                        primary_damping_range(vehicle, s.track)))
-              if min(abs(np.log(v / lo)), abs(np.log(hi / v))) < 0.01 * np.log(hi / lo)]
+        at = [n for n, (lo, hi) in search_ranges(vehicle, s.track).items()
+              if min(abs(np.log(params[n] / lo)), abs(np.log(hi / params[n]))) < 0.01 * np.log(hi / lo)]
         residual = None
     red = reductions(before, after)
     seen = ~np.isnan(red)

@@ -232,11 +232,15 @@ def _solve(ne: _Normal, f_t, zeta, mass, z_w=None):
     return ne.solve_cells(_log_t2_cells(ne.d, f_t, zeta, mass, z_w))
 
 
-def primary_damping_range(vehicle: CarParameters, settings: TrackSettings) -> tuple[float, float]:
-    """[N s/m] The primary damping searched: ``settings.primary_damping_range`` of the
-    wheelset's critical damping on its primary spring."""
+def search_ranges(vehicle: CarParameters, settings: TrackSettings) -> dict[str, tuple[float, float]]:
+    """The physical ranges the flexible track is searched over under ``vehicle``: its own
+    frequency [Hz], damping ratio, mass [kg] (``settings.mass_ratio_range`` of the
+    wheelset's) and the primary damping [N s/m] (``settings.primary_damping_range`` of the
+    wheelset's critical damping on its primary spring), keyed as :meth:`TrackFit.to_json`."""
     critical = 2 * np.sqrt(vehicle.k_p * vehicle.m_w)
-    return tuple(float(critical * r) for r in settings.primary_damping_range)
+    return {"track_frequency_hz": settings.f_t_range, "damping_ratio": settings.zeta_range,
+            "track_mass_kg": tuple(float(vehicle.m_w * r) for r in settings.mass_ratio_range),
+            "primary_damping_n_s_per_m": tuple(float(critical * r) for r in settings.primary_damping_range)}
 
 
 def fit_track(stats: Statistics, train_keys, *, flexible: bool, settings: TrackSettings = TrackSettings(),
@@ -252,9 +256,7 @@ def fit_track(stats: Statistics, train_keys, *, flexible: bool, settings: TrackS
     if not flexible:
         coef, err = _solve(ne, None, None, None)
         return TrackFit(None, None, knots, coef, err)
-    bounds = [tuple(np.log(settings.f_t_range)), tuple(np.log(settings.zeta_range)),
-              tuple(np.log(np.array(settings.mass_ratio_range) * vehicle.m_w)),
-              tuple(np.log(primary_damping_range(vehicle, settings)))]
+    bounds = [tuple(np.log(r)) for r in search_ranges(vehicle, settings).values()]
     start, best = None, np.inf
     for lc in np.linspace(*bounds[3], 4):  # the track's grid at a few primary dampings
         z_w = _z_w(d, np.exp(lc))
