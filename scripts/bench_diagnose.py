@@ -67,6 +67,12 @@ campaigns (development campaigns: within 6 %); clean 10/10 `none`, the normal tr
 property at 120-150 MN/m; sensor offset + soft track: both named on 8550-8552 (8552 gave
 the offset only before). The other cases are not re-run now.
 
+Forecast for the track's fold ranges and form allowance near the 80 MN/m line (written
+2026-11-28 before the runs; the rule came from seeds 8206 and 8208, so it is measured on
+repetitions not yet run): track_flexibility j = 20-29 (seeds 8220-8229) named 10/10, at
+`moderate` below a hidden 72 MN/m or so and `low` above (found 1-9 % over the hidden);
+clean j = 10-19 (seeds 8310-8319) `none` 10/10, the normal track's folds all above 88 MN/m.
+
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
 runs use ``--first-seed 7000`` (seeds 7000-7649), which never reaches a bench seed. A rule

@@ -3,6 +3,8 @@ additions, a fit that starts from extension parameters found before leaves them 
 global stage, and a fitted size that every vehicle or track has is a property, not a cause."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from calibration.diagnosis.in_service.extensions import (BENDING_FAULT_HZ, COG_CENTRED_WITHIN_M, COG_FAULT_M,
@@ -61,6 +63,62 @@ def test_a_size_between_a_normal_vehicles_and_the_smallest_fault_is_in_between(n
     assert ext.in_between({parameter: 0.5 * normal}) is None  # a property, not a finding at all
     assert ext.in_between({parameter: 1.01 * fault}) is None
     assert EXTENSIONS["airspring_reservoir"].in_between({"reservoir_ratio": 0.06}) is None
+
+
+def _track(stiffness: float, low: float, high: float, gain: float = 0.9):
+    from calibration.diagnosis.in_service.hypotheses import Hypothesis
+
+    ext = EXTENSIONS["track_flexibility"]
+    return Hypothesis(extension=ext, evidence_score=0.0, parameters={"track_stiffness_n_per_m": stiffness},
+                      parameters_at_bounds=(), model={}, heldout_error={}, residual=None, systematic_left=None,
+                      systematic_after=None, best_channel="axle1_mean", gain=gain, worst_change=0.0, losses=(),
+                      penalised_gain=gain - 0.01 * ext.n_params, fit=None,
+                      parameter_ranges={"track_stiffness_n_per_m": (low, high)})
+
+
+@pytest.mark.parametrize("stiffness, low, high, role, word", [
+    (0.8e6 * 140, 0.8e6 * 125, 0.8e6 * 150, "property", None),  # a normal track, its folds all above the line
+    (0.8e6 * 60, 0.8e6 * 57, 0.8e6 * 64, "cause", "moderate"),  # a soft one, all below
+    (0.8e6 * 102, 0.8e6 * 95, 0.8e6 * 110, "cause", "low"),  # found above the line, a fold below it
+    (0.8e6 * 97, 0.8e6 * 93, 0.8e6 * 104, "cause", "low"),  # found below the line, a fold above it
+    # above the line on every fold, but within what the one-mass form may overstate a layered track by
+    (0.8e6 * 106, 0.8e6 * 105, 0.8e6 * 108, "cause", "low"),
+    (0.8e6 * 114, 0.8e6 * 112, 0.8e6 * 116, "property", None),  # beyond that allowance
+])
+def test_a_track_whose_speed_folds_reach_across_the_line_is_a_cause_of_low_confidence(stiffness, low, high,
+                                                                                        role, word):
+    from calibration.diagnosis.in_service.confidence import held_out_confidence
+    from calibration.diagnosis.in_service.selection import _finding
+
+    assert SOFT_TRACK_N_PER_M == pytest.approx(0.8e6 * 100)  # the cases are written around 80 MN/m
+    h = _track(stiffness, low, high)
+    f = _finding(h.extension, h, h.parameters, held_out_confidence(h.gain, "by speed"))
+    assert f.role == role
+    if word is not None:
+        assert f.confidence.word == word
+    assert ("across" in f.confidence.why) == (word == "low")
+    assert EXTENSIONS["track_flexibility"].form_allowance == pytest.approx(0.10)
+    no_range = replace(h, parameter_ranges=None)  # one speed bin: no folds, the point against the line
+    f = _finding(h.extension, no_range, h.parameters, held_out_confidence(h.gain, "by speed"))
+    assert f.role == ("property" if stiffness > SOFT_TRACK_N_PER_M else "cause")
+
+
+def test_a_fitted_track_sets_the_soft_tracks_limit_by_its_folds_spread_not_by_the_rigid_rails_misfit():
+    """On a clean campaign the rigid rail's misfit holds the normal track's own resonance,
+    and a limit on the gain over it fell to a few MN/m (bench seeds 8306, 8308, 8208)."""
+    from calibration.diagnosis.in_service import DiagnosisSettings
+    from calibration.diagnosis.in_service.detectability import with_track_fit
+    from calibration.diagnosis.limits import Detectability, Limit
+
+    s = DiagnosisSettings()
+    detect = Detectability((Limit("track_flexibility", "track_stiffness", "N/m", 6.6e6, True, "gain", "below"),
+                            Limit("cog_offset", "cog_offset", "m", 0.4, True, "gain", "above")))
+    found = with_track_fit(detect, _track(120e6, 110e6, 132e6), s)
+    track, cog = found.limits
+    assert track.detectable_beyond == pytest.approx(SOFT_TRACK_N_PER_M / 1.1 / 1.1) and "speed folds" in track.why
+    assert cog == detect.limits[1]
+    assert with_track_fit(detect, _track(120e6, 110e6, 132e6, gain=0.0), s) is detect  # no track in the data
+    assert with_track_fit(detect, None, s) is detect
 
 
 def _hypothesis(gain: float, left: float | None, losses=(), left_after: float | None = 0.05):

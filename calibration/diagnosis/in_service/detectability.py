@@ -31,6 +31,8 @@ sampling scatter is *not observable* with this sensor set.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ...models.car2d import CarExtras
@@ -235,6 +237,30 @@ def _track_limit(data: DiagnosisData, base: ResponseFit, bar: float) -> Limit:
                f"{np.sqrt(limit / m_t) / (2 * np.pi):.0f} Hz; {held}) would gain {bar:.0%} on the axle boxes' "
                "collapse held out by speed")
     return Limit("track_flexibility", mag.parameter, mag.unit, limit, observable or limit is not None, why, "below")
+
+
+def with_track_fit(detect: Detectability, h, settings) -> Detectability:
+    """``detect`` with the track's limit from the track hypothesis ``h`` when that gains
+    enough: the data then carry a track resonance (a normal track's too), and whether a
+    soft track is named hangs on its fitted stiffness against the catalogue's line, not on
+    a gain over the rigid rail (whose misfit holds that normal track's own, so the limit
+    of :func:`_track_limit` falls to a few MN/m on some clean campaigns). A track found
+    here would be named at moderate confidence when its highest fold stays under the line,
+    which the model's form may overstate it by :attr:`.extensions.Extension.form_allowance`:
+    the line over the folds' upward spread and that allowance."""
+    if h is None or not h.parameter_ranges or not h.gains_enough(settings):
+        return detect
+    ext = EXTENSIONS["track_flexibility"]
+    line = ext.normal_above[1]
+    k = h.parameters["track_stiffness_n_per_m"]
+    hi = h.parameter_ranges["track_stiffness_n_per_m"][1]
+    limit = line * k / hi / (1.0 + ext.form_allowance)
+    why = (f"track stiffness {limit:.3g} N/m and below: the track found here, {k:.3g} N/m, reaches {hi:.3g} N/m "
+           f"over the speed folds, and the one-mass track may overstate a layered one's by "
+           f"{ext.form_allowance:.0%}; a track softer by both than the catalogue's line ({line:.3g} N/m) would be "
+           "named")
+    return Detectability(tuple(replace(x, detectable_beyond=limit, observable=True, why=why)
+                               if x.name == "track_flexibility" else x for x in detect.limits))
 
 
 def detectability(data: DiagnosisData, base: ResponseFit) -> Detectability:

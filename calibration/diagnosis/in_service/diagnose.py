@@ -60,7 +60,7 @@ from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import BaselineStart, baseline_start
 from .confidence import hypothesis_intervals
-from .detectability import Detectability, detectability
+from .detectability import Detectability, detectability, with_track_fit
 from .evidence import DiagnosisData, Evidence, alarms, baseline_evidence, notes, scores
 from .extensions import EXTENSIONS
 from .hypotheses import Hypothesis, fit_hypothesis
@@ -160,6 +160,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
     sel = select(data, hyps, base_fit, ev, say)
+    detect = with_track_fit(detect, next((h for h in hyps if h.kind == "track"), None), settings)
     intervals = hypothesis_intervals(data, base_fit, hyps, ev.masks)
     left = sel.evidence_left(data, ev)
     words = alarms(left, settings)

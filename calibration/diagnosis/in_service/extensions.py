@@ -56,6 +56,12 @@ UNDERFLOOR_M = 8.0
 #: The effects catalogue's track flexibility is a soft to medium track, 20-80 MN/m per
 #: wheelset; every track gives, so a stiffer track is reported as found, not as a cause.
 SOFT_TRACK_N_PER_M = 80.0e6
+#: The one-mass track's stiffness is a dynamic one, fitted at its resonance; a real track's
+#: rail pads over ballast have a static stiffness (the catalogue's measure, the two in
+#: series) below it. On development campaigns of the independent truth the fit came 1.5 %
+#: below to 9 % above the series value: a track found up to this share above the line may
+#: be under it.
+TRACK_FORM_ALLOWANCE = 0.10
 #: A floor accelerometer's scale error the floor-sensor extension fits, as the gyro's: what a
 #: data sheet and a calibration leave. The independent truth's sensors are within 3 %.
 FLOOR_GAIN_ERROR = 0.05
@@ -102,6 +108,9 @@ class Extension:
     # sizes derived from the fitted parameters (the worst-placed sensor's |dx|), which
     # normal_within and fault_from may name
     sizes: Callable[[dict], dict] | None = None
+    # the share by which the model's form can overstate the normal_above parameter (the
+    # fitted range reaches that much further down when tested against the line)
+    form_allowance: float = 0.0
     # parameters (log ranges) whose range's low end means the effect is absent there (a
     # friction force of 10 N): fitted at that end, the extension is not standing in for
     # something else (selection._stands_in)
@@ -139,6 +148,21 @@ class Extension:
             return False
         name, bound = self.normal_above
         return parameters.get(name) is not None and parameters[name] > bound
+
+    def straddles(self, parameters: dict, ranges: dict | None) -> str | None:
+        """Why the property line (:attr:`normal_above`) cannot tell a fault from a property
+        here: the fitted parameter's ``ranges`` (its (low, high) over held-out folds) reach
+        across the line. None when they do not, or no range is known."""
+        if self.normal_above is None or not ranges or self.normal_above[0] not in ranges:
+            return None
+        name, bound = self.normal_above
+        lo, hi = ranges[name]
+        low = lo / (1.0 + self.form_allowance)
+        if not low <= bound <= hi:
+            return None
+        form = f" (less {self.form_allowance:.0%} the model's form may add)" if self.form_allowance else ""
+        return (f"{name} {parameters[name]:.3g} ranges {low:.3g}{form} to {hi:.3g} over the folds, across "
+                f"{bound:.3g}, the top of the catalogue's fault range: a fault or a normal property")
 
     def in_between(self, parameters: dict) -> str | None:
         """Why these fitted parameters lie between a normal vehicle's and the catalogue's
@@ -241,7 +265,7 @@ EXTENSIONS: dict[str, Extension] = {e.name: e for e in (
     Extension("track_flexibility", "track",
               "wheelsets on a flexible track: the track mass under them, its own frequency and damping ratio "
               "(and the primary damping above them)",
-              normal_above=("track_stiffness_n_per_m", SOFT_TRACK_N_PER_M)),
+              normal_above=("track_stiffness_n_per_m", SOFT_TRACK_N_PER_M), form_allowance=TRACK_FORM_ALLOWANCE),
 )}
 
 

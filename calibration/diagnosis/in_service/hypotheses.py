@@ -54,6 +54,8 @@ class Hypothesis:
     # coherence at or above ``systematic_floor``); False: every channel it gains on was
     # already within a model's accuracy
     on_model_error: bool = True
+    # track kind: parameter -> (low, high) over the speed folds' fits and the fit on all data
+    parameter_ranges: dict | None = None
 
     @property
     def name(self) -> str:
@@ -73,7 +75,9 @@ class Hypothesis:
                 "on_model_error": self.on_model_error,
                 "best_channel": self.best_channel, "gain": self.gain,
                 "worst_change": self.worst_change, "losses": list(self.losses),
-                "penalised_gain": self.penalised_gain, "evidence_score": self.evidence_score}
+                "penalised_gain": self.penalised_gain, "evidence_score": self.evidence_score,
+                "parameter_ranges": None if self.parameter_ranges is None
+                else {n: list(r) for n, r in self.parameter_ranges.items()}}
 
     def passes(self, s: DiagnosisSettings) -> bool:
         """Does it gain enough on held-out data, lose on no channel and (a response
@@ -146,6 +150,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
     s, stats = data.settings, data.stats
     spectrum = None
     eligible = None
+    ranges = None
     n_params = ext.n_params
     if ext.kind == "response":
         prev = base_fit if added_to is None else added_to.fit
@@ -181,7 +186,10 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         all_keys = set(stats.S)
         vehicle = base_fit.parameters
         fit = fit_track(stats, all_keys, flexible=True, settings=s.track, vehicle=vehicle)
-        before, after = track_cross_validation(stats, all_keys, s.track, vehicle=vehicle)
+        before, after, folds = track_cross_validation(stats, all_keys, s.track, vehicle=vehicle)
+        if folds:  # how far the speed ranges move the stiffness: near the catalogue's line, whether it is a fault
+            ks = [fit.stiffness] + [f.stiffness for f in folds]
+            ranges = {"track_stiffness_n_per_m": (min(ks), max(ks))}
         if before.size < 2:  # one speed bin: held-out runs instead
             tb = fit_track(stats, data.keys(data.train), flexible=False, settings=s.track)
             fit = fit_track(stats, data.keys(data.train), flexible=True, settings=s.track, vehicle=vehicle)
@@ -220,4 +228,4 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         worst_change=float(np.nanmin(red)) if seen.any() else 0.0,
         losses=tuple(heldout_losses(names, before, after, best, s.max_loss)),
         penalised_gain=gain - s.penalty * n_params, fit=fit, heldout_line_spectrum=spectrum,
-        on_model_error=True if eligible is None else bool(seen.any() and eligible[best]))
+        on_model_error=True if eligible is None else bool(seen.any() and eligible[best]), parameter_ranges=ranges)

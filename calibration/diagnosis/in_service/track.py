@@ -319,14 +319,16 @@ def speed_folds(stats: Statistics, keys) -> list[tuple[set, set]]:
 
 def track_cross_validation(stats: Statistics, keys, settings: TrackSettings = TrackSettings(), *,
                            vehicle: CarParameters):
-    """(rigid error, flexible error) per channel, summed over the speed folds."""
-    before, after = 0.0, 0.0
+    """(rigid error, flexible error) per channel, summed over the speed folds, and each
+    fold's flexible fit (how far the track's parameters move between speed ranges)."""
+    before, after, fits = 0.0, 0.0, []
     for fit_keys, test_keys in speed_folds(stats, keys):
         rigid = fit_track(stats, fit_keys, flexible=False, settings=settings)
         flexible = fit_track(stats, fit_keys, flexible=True, settings=settings, vehicle=vehicle)
         before = before + track_error(stats, test_keys, rigid, settings)
         after = after + track_error(stats, test_keys, flexible, settings)
-    return np.atleast_1d(before), np.atleast_1d(after)
+        fits.append(flexible)
+    return np.atleast_1d(before), np.atleast_1d(after), fits
 
 
 def collapse_shift(stats: Statistics, keys, settings: TrackSettings = TrackSettings(), *,
