@@ -72,6 +72,14 @@ Forecast for the track's fold ranges and form allowance near the 80 MN/m line (w
 repetitions not yet run): track_flexibility j = 20-29 (seeds 8220-8229) named 10/10, at
 `moderate` below a hidden 72 MN/m or so and `low` above (found 1-9 % over the hidden);
 clean j = 10-19 (seeds 8310-8319) `none` 10/10, the normal track's folds all above 88 MN/m.
+Measured: the track 10/10 as forecast (8221 and 8225, hidden 77.3 and 76.2 MN/m, `low`).
+
+Forecast for pairs at later steps (written 2026-11-28 before the runs; the rule came from
+development campaign 61, not from a bench seed, so the reservoir's first ten count as well
+as fresh ones): airspring_reservoir j = 0-19 named on 16-19 of 20, the misses among the
+smallest (8105 0.60, 8112 0.54, 8116 0.59 bag volumes) and answered `none` or
+`unexplained`, no wrong name; clean j = 10-19 `none` 10/10 (pairs of properties name no
+cause).
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development

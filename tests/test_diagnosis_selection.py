@@ -146,6 +146,30 @@ def test_a_hypothesis_passes_on_gain_without_losses_and_explaining_the_systemati
     assert _hypothesis(0.4, None).passes(s)  # no response residual to explain (a wheel or track kind)
 
 
+def test_two_effects_that_hide_each_other_are_paired_when_one_is_held_back_by_a_loss():
+    """A mount explaining the carbody's residual but overshooting on the bogie (a loss) and a
+    reservoir leaving the mount's part (the systematic rule) are each held back alone; in
+    the pair, the reservoir's gain on the channel the mount made worse counts (development
+    campaign 61)."""
+    from dataclasses import replace as copy
+
+    from calibration.diagnosis.in_service import DiagnosisSettings
+    from calibration.diagnosis.in_service.selection import _blocked, _needed
+
+    s = DiagnosisSettings()
+    mount = copy(_hypothesis(0.45, 0.46, losses=("bogie1_acc_z",)), best_channel="carbody_rear_acc_z")
+    reservoir = _hypothesis(0.33, 0.59, left_after=2 * s.systematic_floor)
+    weak = _hypothesis(0.1, 0.9)
+    ext = EXTENSIONS["sensor_offset"]
+    assert not mount.passes(s) and not reservoir.passes(s)
+    assert [h for _, h in _blocked(s, [(ext, weak), (ext, reservoir), (ext, mount)])] == [mount, reservoir]
+    on_top = copy(_hypothesis(0.67, 0.1), best_channel="bogie1_acc_z", on_model_error=False)
+    assert _needed(s, on_top, mount)  # its gain is on the channel the mount made worse
+    assert not _needed(s, on_top, reservoir)  # a gain on a channel already within a model's accuracy
+    assert not _needed(s, copy(on_top, losses=("carbody_front_acc_z",)), mount)
+    assert not _needed(s, _hypothesis(s.min_gain, 0.1), mount)  # the penalty takes it under the bar
+
+
 def test_a_gain_seen_in_every_held_out_cell_is_sure_one_carried_by_a_single_cell_is_not():
     """The interval comes from resampling the held-out cells: the same gain spread over
     every cell clears the bar; carried by one cell of ten, its interval reaches below it."""

@@ -10,8 +10,9 @@ The data has three parts that no extension shares, each decided on its own:
   selection): the best hypothesis that passes (:meth:`.hypotheses.Hypothesis.passes`) is
   kept, every other response extension is fitted again on top of it and judged by what
   it adds on held-out data, and so on while one passes, up to ``MAX_RESPONSE_STEPS`` causes.
-  When none passes alone because each leaves the systematic residual of another effect
-  (two effects hide each other), the leading ones are tried in pairs (:func:`_pair`).
+  When none passes at a step because each leaves the systematic residual of another effect
+  or loses on the channel the other explains (two effects hide each other), the leading
+  ones are tried in pairs (:func:`_pair`), at the first step and at later ones alike.
 
 A passing hypothesis whose fitted size is what every vehicle or track has (a carbody
 bending above the catalogue's range, a track stiffer than its soft track:
@@ -147,43 +148,75 @@ def _confidence(data: DiagnosisData, ev: Evidence, before: ResponseFit, h: Hypot
                                [r.gain for r in rivals if r is not h])
 
 
-def _pair(data: DiagnosisData, response: list[Hypothesis], base_fit: ResponseFit, ev: Evidence, say
-          ) -> tuple[Hypothesis, Hypothesis, Hypothesis, Hypothesis] | None:
-    """Two effects that hide each other: each response hypothesis that gains enough alone
-    but leaves the systematic residual (the other effect's part of it) is fitted together
-    with each other such one. A pair is found when each, added to the other, gains enough
-    and loses on no channel, and together they explain the baseline's systematic residual
-    as one hypothesis must. (a, b, a then b, b then a), each alone and combined both ways;
-    None when no pair passes."""
+def _add_pair(data: DiagnosisData, ev: Evidence, findings: list, pair) -> None:
+    """The findings of a pair (:func:`_pair`), each by what it adds to the other."""
+    ea, eb, a, b, ab, ba = pair
+    for e, alone, added in ((ea, b, ba), (eb, a, ab)):
+        findings.append(_finding(e, added, _own(e, ab), _confidence(data, ev, alone.fit, added, e, [])))
+
+
+def _blocked(s, tried: list[tuple[Extension, Hypothesis]]) -> list[tuple[Extension, Hypothesis]]:
+    """The (extension, hypothesis) pairs that gain the bar on a channel with a model error
+    but are held back by the systematic rule or by a loss on another channel: what two
+    effects that hide each other look like, each alone (the best by gain, at most
+    ``PAIR_CANDIDATES``)."""
+    return sorted(((e, h) for e, h in tried if h.penalised_gain >= s.min_gain and h.on_model_error
+                   and (h.leaves_systematic(s) or h.losses)),
+                  key=lambda eh: -eh[1].penalised_gain)[:PAIR_CANDIDATES]
+
+
+def _pair(data: DiagnosisData, tried: list[tuple[Extension, Hypothesis]], before: ResponseFit,
+          channels: dict, base_fit: ResponseFit, ev: Evidence, say
+          ) -> tuple[Extension, Extension, Hypothesis, Hypothesis, Hypothesis, Hypothesis] | None:
+    """Two effects that hide each other: each hypothesis of ``tried`` (an extension added
+    to ``before``, whose residual's evidence per channel is ``channels``) that gains enough
+    but leaves the systematic residual or loses on a channel (the other effect's part) is
+    fitted together with each other such one. A pair is found when each, added to the
+    other, gains enough and loses on no channel (:func:`_needed`), neither stands in for something else
+    (:func:`_stands_in`), and together they explain the systematic residual ``before``
+    leaves as one hypothesis must. (e_a, e_b, a, b, a then b, b then a); None when no pair
+    passes."""
     s = data.settings
-    blocked = sorted((h for h in response if h.gains_enough(s) and h.leaves_systematic(s)),
-                     key=lambda h: -h.penalised_gain)[:PAIR_CANDIDATES]
+    blocked = _blocked(s, tried)
     best = None
-    for i, a in enumerate(blocked):
-        for b in blocked[i + 1:]:
-            ab = fit_hypothesis(data, combined(a.extension, b.extension), base_fit, ev, 0.0, added_to=a)
-            ba = fit_hypothesis(data, combined(b.extension, a.extension), base_fit, ev, 0.0, added_to=b)
-            say(f"{a.name} with {b.name}: held-out gain {ab.gain:.1%} over {a.name}, {ba.gain:.1%} over {b.name}")
-            if all(h.gains_enough(s) for h in (ab, ba)) \
-                    and _left_of_baseline(data, ab, base_fit, ev) <= s.max_systematic_left \
-                    and (best is None or ab.penalised_gain > best[1].penalised_gain):
-                best = (a, b, ab, ba)
+    for i, (ea, a) in enumerate(blocked):
+        for eb, b in blocked[i + 1:]:
+            ab = fit_hypothesis(data, combined(a.extension, eb), base_fit, ev, 0.0, added_to=a)
+            ba = fit_hypothesis(data, combined(b.extension, ea), base_fit, ev, 0.0, added_to=b)
+            say(f"{a.name} with {eb.name}: held-out gain {ab.gain:.1%} over {a.name}, {ba.gain:.1%} over {b.name}")
+            if _needed(s, ab, a) and _needed(s, ba, b) and not any(_stands_in(e, ab) for e in (ea, eb)) \
+                    and _explains(data, ab, before, channels, ev.masks) \
+                    and (best is None or ab.penalised_gain > best[4].penalised_gain):
+                best = (ea, eb, a, b, ab, ba)
     return best
 
 
-def _left_of_baseline(data: DiagnosisData, h: Hypothesis, base_fit: ResponseFit, ev: Evidence) -> float:
-    """The share of the baseline's systematic residual (held-out error x input coherence) a
-    response hypothesis leaves on the channel where it gains most over the baseline: the
-    rule each single hypothesis meets (:meth:`.hypotheses.Hypothesis.leaves_systematic`),
-    for a combination judged as a whole."""
-    before = response_errors(data, base_fit, ev.masks)
+def _needed(s, h: Hypothesis, partner: Hypothesis) -> bool:
+    """Does ``h``, one effect added to its ``partner``, gain enough and lose nothing? Its gain
+    counts on a channel with a model error, or on one the partner alone made worse (a mount
+    that explains the carbody's residual but overshoots on the bogie, which the reservoir
+    on top of it mends: development campaign 61)."""
+    return h.penalised_gain >= s.min_gain and not h.losses \
+        and (h.on_model_error or h.best_channel in partner.losses)
+
+
+def _explains(data: DiagnosisData, h: Hypothesis, before: ResponseFit, channels: dict, masks: np.ndarray) -> bool:
+    """Does response hypothesis ``h``, judged as a whole against ``before`` (its residual's
+    evidence ``channels``), meet the systematic rule each single hypothesis meets
+    (:meth:`.hypotheses.Hypothesis.leaves_systematic`) on the channel where it gains most:
+    it leaves at most ``max_systematic_left`` of the systematic residual, or what it leaves
+    is within a model's accuracy?"""
+    s = data.settings
+    errors = response_errors(data, before, masks)
     after = np.array([h.heldout_error[n]["after"] for n in data.layout.response_names])
-    red = reductions(before, after)
+    red = reductions(errors, after)
     if not np.any(~np.isnan(red)):
-        return np.inf
+        return False
     c = int(np.nanargmax(red))
     name = data.layout.response_names[c]
-    return systematic_left(float(red[c]), h.residual[name]["after"], ev.channels[name])
+    coherence = h.residual[name]["after"]["input_coherence"]
+    return systematic_left(float(red[c]), h.residual[name]["after"], channels[name]) <= s.max_systematic_left \
+        or after[c] * coherence < s.systematic_floor
 
 
 def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, ev: Evidence,
@@ -206,14 +239,11 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
                                  _confidence(data, ev, base_fit, current, current.extension, passed)))
         used = [current.name]
     else:
-        pair = _pair(data, response, base_fit, ev, say)
+        pair = _pair(data, [(h.extension, h) for h in response], base_fit, ev.channels, base_fit, ev, say)
         if pair is None:
             return Selection(tuple(findings), None, None)
-        a, b, current, ba = pair
-        for e, alone, added in ((a.extension, b, ba), (b.extension, a, current)):  # each by what it adds to the other
-            findings.append(_finding(e, added, _own(e, current),
-                                     _confidence(data, ev, alone.fit, added, e, [])))
-        used = [a.name, b.name]
+        _add_pair(data, ev, findings, pair)
+        used, current = [pair[0].name, pair[1].name], pair[4]
     def causes():
         return sum(f.role == "cause" for f in findings if f.hypothesis.kind == "response")
 
@@ -227,8 +257,15 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             say(f"{' + '.join(used)} + {name}: held-out gain {h.gain:.1%} on {h.best_channel}")
             tried.append((e, h))
         ok = [(e, h) for e, h in tried if kept(e, h, s)]
-        if not ok:
-            break
+        if not ok:  # two effects may hide each other here as at the first step
+            pair = _pair(data, tried, current.fit, channel_evidence(data, current.fit, ev.masks)[0], base_fit, ev,
+                         say)
+            if pair is None:
+                break
+            _add_pair(data, ev, findings, pair)
+            used += [pair[0].name, pair[1].name]
+            current = pair[4]
+            continue
         e, h = max(ok, key=lambda eh: eh[1].penalised_gain)
         own = _own(e, h)
         findings.append(_finding(e, h, own, _confidence(data, ev, current.fit, h, e, [x for _, x in ok])))
