@@ -105,6 +105,12 @@ class Hypothesis:
         return self.systematic_after is None or self.systematic_after >= s.systematic_floor
 
 
+def _at_limits(params: dict, limits: dict) -> list[str]:
+    """The track parameters within 1 % (of their log range) of a limit of ``limits``."""
+    return [n for n, (lo, hi) in limits.items()
+            if min(abs(np.log(params[n] / lo)), abs(np.log(hi / params[n]))) < 0.01 * np.log(hi / lo)]
+
+
 def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """Relative held-out error reduction per channel, 1 - after / before; NaN where the
     channel has no held-out error to reduce (no signal band of it survived the masks: 0 / 0
@@ -187,8 +193,12 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         vehicle = base_fit.parameters
         fit = fit_track(stats, all_keys, flexible=True, settings=s.track, vehicle=vehicle)
         before, after, folds = track_cross_validation(stats, all_keys, s.track, vehicle=vehicle)
+        limits = search_ranges(vehicle, s.track)
         if folds:  # how far the speed ranges move the stiffness: near the catalogue's line, whether it is a fault
-            ks = [fit.stiffness] + [f.stiffness for f in folds]
+            # a fold whose frequency or mass ends at a limit of its search (a narrow span of
+            # speeds) says nothing of the stiffness, (2 pi f_t)^2 m_t
+            stiffness_of = {n: limits[n] for n in ("track_frequency_hz", "track_mass_kg")}
+            ks = [fit.stiffness] + [f.stiffness for f in folds if not _at_limits(f.to_json(), stiffness_of)]
             ranges = {"track_stiffness_n_per_m": (min(ks), max(ks))}
         if before.size < 2:  # one speed bin: held-out runs instead
             tb = fit_track(stats, data.keys(data.train), flexible=False, settings=s.track)
@@ -203,8 +213,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         # the transmissibility was fitted under the primary damping found with it, not the baseline's
         model = {"extras": {"track_stiffness": fit.stiffness, "track_damping_ratio": fit.zeta,
                             "track_mass": fit.mass}, "parameters": {"c_p": fit.vehicle.c_p}}
-        at = [n for n, (lo, hi) in search_ranges(vehicle, s.track).items()
-              if min(abs(np.log(params[n] / lo)), abs(np.log(hi / params[n]))) < 0.01 * np.log(hi / lo)]
+        at = _at_limits(params, limits)
         residual = None
     red = reductions(before, after)
     seen = ~np.isnan(red)

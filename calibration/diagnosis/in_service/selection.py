@@ -30,11 +30,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors
+from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors, within_accuracy
 from .extensions import EXTENSIONS, Extension, combined
 from .confidence import Confidence, held_out_confidence, response_confidence
 from .amplitude import FRICTION, viscous
-from .hypotheses import Hypothesis, fit_hypothesis, reductions, response_model, systematic_left
+from .hypotheses import Hypothesis, fit_hypothesis, heldout_losses, reductions, response_model, systematic_left
 from .response import ResponseFit, fit_response
 
 #: response causes found one after the other, at most (a third is rare enough on a campaign
@@ -148,11 +148,11 @@ def _confidence(data: DiagnosisData, ev: Evidence, before: ResponseFit, h: Hypot
                                [r.gain for r in rivals if r is not h])
 
 
-def _add_pair(data: DiagnosisData, ev: Evidence, findings: list, pair) -> None:
+def _pair_findings(data: DiagnosisData, ev: Evidence, pair) -> list[Finding]:
     """The findings of a pair (:func:`_pair`), each by what it adds to the other."""
     ea, eb, a, b, ab, ba = pair
-    for e, alone, added in ((ea, b, ba), (eb, a, ab)):
-        findings.append(_finding(e, added, _own(e, ab), _confidence(data, ev, alone.fit, added, e, [])))
+    return [_finding(e, added, _own(e, ab), _confidence(data, ev, alone.fit, added, e, []))
+            for e, alone, added in ((ea, b, ba), (eb, a, ab))]
 
 
 def _blocked(s, tried: list[tuple[Extension, Hypothesis]]) -> list[tuple[Extension, Hypothesis]]:
@@ -202,21 +202,28 @@ def _needed(s, h: Hypothesis, partner: Hypothesis) -> bool:
 
 def _explains(data: DiagnosisData, h: Hypothesis, before: ResponseFit, channels: dict, masks: np.ndarray) -> bool:
     """Does response hypothesis ``h``, judged as a whole against ``before`` (its residual's
-    evidence ``channels``), meet the systematic rule each single hypothesis meets
-    (:meth:`.hypotheses.Hypothesis.leaves_systematic`) on the channel where it gains most:
-    it leaves at most ``max_systematic_left`` of the systematic residual, or what it leaves
-    is within a model's accuracy?"""
+    evidence ``channels``), meet the rules each single hypothesis meets: no channel made
+    worse than ``before`` left it (:func:`.hypotheses.heldout_losses`), and on the channel
+    with a model error where it gains most, at most ``max_systematic_left`` of the
+    systematic residual left or what is left within a model's accuracy
+    (:meth:`.hypotheses.Hypothesis.leaves_systematic`)? A pair's members are each judged
+    against the other, so a loss both share would go unseen without the first rule."""
     s = data.settings
+    names = data.layout.response_names
     errors = response_errors(data, before, masks)
-    after = np.array([h.heldout_error[n]["after"] for n in data.layout.response_names])
+    after = np.array([h.heldout_error[n]["after"] for n in names])
     red = reductions(errors, after)
-    if not np.any(~np.isnan(red)):
+    seen = ~np.isnan(red)
+    erring = seen & np.array([not within_accuracy(channels[n], s) for n in names])
+    pick = erring if erring.any() else seen
+    if not pick.any():
         return False
-    c = int(np.nanargmax(red))
-    name = data.layout.response_names[c]
-    coherence = h.residual[name]["after"]["input_coherence"]
-    return systematic_left(float(red[c]), h.residual[name]["after"], channels[name]) <= s.max_systematic_left \
-        or after[c] * coherence < s.systematic_floor
+    c = int(np.flatnonzero(pick)[np.argmax(red[pick])])
+    if heldout_losses(names, errors, after, c, s.max_loss):
+        return False
+    coherence = h.residual[names[c]]["after"]["input_coherence"]
+    return systematic_left(float(red[c]), h.residual[names[c]]["after"], channels[names[c]]) \
+        <= s.max_systematic_left or after[c] * coherence < s.systematic_floor
 
 
 def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, ev: Evidence,
@@ -242,7 +249,7 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
         pair = _pair(data, [(h.extension, h) for h in response], base_fit, ev.channels, base_fit, ev, say)
         if pair is None:
             return Selection(tuple(findings), None, None)
-        _add_pair(data, ev, findings, pair)
+        findings += _pair_findings(data, ev, pair)
         used, current = [pair[0].name, pair[1].name], pair[4]
     def causes():
         return sum(f.role == "cause" for f in findings if f.hypothesis.kind == "response")
@@ -258,11 +265,12 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
             tried.append((e, h))
         ok = [(e, h) for e, h in tried if kept(e, h, s)]
         if not ok:  # two effects may hide each other here as at the first step
-            pair = _pair(data, tried, current.fit, channel_evidence(data, current.fit, ev.masks)[0], base_fit, ev,
-                         say)
-            if pair is None:
+            pair = None if not _blocked(s, tried) else \
+                _pair(data, tried, current.fit, channel_evidence(data, current.fit, ev.masks)[0], base_fit, ev, say)
+            new = [] if pair is None else _pair_findings(data, ev, pair)
+            if not new or causes() + sum(f.role == "cause" for f in new) > MAX_RESPONSE_STEPS:
                 break
-            _add_pair(data, ev, findings, pair)
+            findings += new
             used += [pair[0].name, pair[1].name]
             current = pair[4]
             continue
