@@ -79,7 +79,13 @@ development campaign 61, not from a bench seed, so the reservoir's first ten cou
 as fresh ones): airspring_reservoir j = 0-19 named on 16-19 of 20, the misses among the
 smallest (8105 0.60, 8112 0.54, 8116 0.59 bag volumes) and answered `none` or
 `unexplained`, no wrong name; clean j = 10-19 `none` 10/10 (pairs of properties name no
-cause).
+cause). The review's mends (b689d1d: a pair judged against the fit before its step) only
+refuse pairs the first code accepted, so clean j = 10-19, run on ea4348e, bounds the false
+alarms from above; the reservoir runs on b689d1d. The near-mimics and the combined centre of
+mass and bending, re-run on b689d1d (j = 0-5 and 0-2, as on 80effcb): rigid equipment `none`
+on most, a `cog_offset` of confidence `moderate` on 8400 and 8404 as before; load variation
+`none` or `unexplained`; no catalogue name with confidence `high` on either; both effects
+named on 8500-8502.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
