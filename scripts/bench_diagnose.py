@@ -86,6 +86,9 @@ mass and bending, re-run on b689d1d (j = 0-5 and 0-2, as on 80effcb): rigid equi
 on most, a `cog_offset` of confidence `moderate` on 8400 and 8404 as before; load variation
 `none` or `unexplained`; no catalogue name with confidence `high` on either; both effects
 named on 8500-8502.
+Measured: reservoir 12/20 (7/10 on j = 0-9 as before, 5/10 on the fresh ten; forecast
+missed), clean j = 10-19 no false alarm (one `unexplained`), near-mimics and the combined
+case as forecast (docs/performance.md).
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
