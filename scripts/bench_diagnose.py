@@ -89,6 +89,8 @@ named on 8500-8502.
 Measured: reservoir 12/20 (7/10 on j = 0-9 as before, 5/10 on the fresh ten; forecast
 missed), clean j = 10-19 no false alarm (one `unexplained`), near-mimics and the combined
 case as forecast (docs/performance.md).
+Forecast for floor_sensor_offset j = 0-19 re-run on 0d43cbb (written before the run): 17 or
+18 of 20 as before (the three smallest faults, 0.31-0.40 m, `none`), no wrong name.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
