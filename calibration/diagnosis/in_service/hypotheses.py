@@ -111,6 +111,15 @@ def _at_limits(params: dict, limits: dict) -> list[str]:
             if min(abs(np.log(params[n] / lo)), abs(np.log(hi / params[n]))) < 0.01 * np.log(hi / lo)]
 
 
+def best_reduction(red: np.ndarray, eligible: np.ndarray | None) -> int | None:
+    """The channel of the largest reduction ``red`` among the ``eligible`` ones (those with a
+    model error), or among all with a reduction when none is eligible; None when no channel
+    has one."""
+    seen = ~np.isnan(red)
+    pick = seen & eligible if eligible is not None and (seen & eligible).any() else seen
+    return int(np.flatnonzero(pick)[np.argmax(red[pick])]) if pick.any() else None
+
+
 def reductions(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """Relative held-out error reduction per channel, 1 - after / before; NaN where the
     channel has no held-out error to reduce (no signal band of it survived the masks: 0 / 0
@@ -221,8 +230,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
     # a channel already within a model's accuracy is a small error made smaller (bench seed
     # 8059: a reservoir "gained" 24 % on a bogie channel whose coherent error was 0.1 % of its
     # power, and was named for a centre of mass 1.4 m off)
-    pick = seen & eligible if eligible is not None and (seen & eligible).any() else seen
-    best = int(np.flatnonzero(pick)[np.argmax(red[pick])]) if pick.any() else 0
+    best = best_reduction(red, eligible) or 0
     gain = float(red[best]) if seen.any() else 0.0
     left = left_after = None
     if residual is not None and seen.any():  # the systematic residual left on the best channel

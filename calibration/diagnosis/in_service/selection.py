@@ -34,7 +34,8 @@ from .evidence import DiagnosisData, Evidence, channel_evidence, response_errors
 from .extensions import EXTENSIONS, Extension, combined
 from .confidence import Confidence, held_out_confidence, response_confidence
 from .amplitude import FRICTION, viscous
-from .hypotheses import Hypothesis, fit_hypothesis, heldout_losses, reductions, response_model, systematic_left
+from .hypotheses import (Hypothesis, best_reduction, fit_hypothesis, heldout_losses, reductions, response_model,
+                         systematic_left)
 from .response import ResponseFit, fit_response
 
 #: response causes found one after the other, at most (a third is rare enough on a campaign
@@ -213,12 +214,9 @@ def _explains(data: DiagnosisData, h: Hypothesis, before: ResponseFit, channels:
     errors = response_errors(data, before, masks)
     after = np.array([h.heldout_error[n]["after"] for n in names])
     red = reductions(errors, after)
-    seen = ~np.isnan(red)
-    erring = seen & np.array([not within_accuracy(channels[n], s) for n in names])
-    pick = erring if erring.any() else seen
-    if not pick.any():
+    c = best_reduction(red, np.array([not within_accuracy(channels[n], s) for n in names]))
+    if c is None:
         return False
-    c = int(np.flatnonzero(pick)[np.argmax(red[pick])])
     if heldout_losses(names, errors, after, c, s.max_loss):
         return False
     coherence = h.residual[names[c]]["after"]["input_coherence"]
