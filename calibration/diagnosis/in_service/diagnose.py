@@ -145,7 +145,6 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     base_fit = fit_response(stats, data.layout, data.keys(data.train), data.prior, data.bounds)
     stages.update()
     say(f"baseline fitted ({base_fit.evaluations} evaluations)")
-    detect = detectability(data, base_fit)
     ev = baseline_evidence(data, base_fit)
     score = scores(ev, data.layout, settings)
     ranked = sorted(score, key=lambda k: -score[k])
@@ -160,6 +159,9 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         hyps.append(h)
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
     sel = select(data, hyps, base_fit, ev, say)
+    # no vehicle cause: a cause of any size would have been judged after the properties found
+    vehicle_cause = any(f.role == "cause" and f.hypothesis.kind == "response" for f in sel.findings)
+    detect = detectability(data, base_fit, None if vehicle_cause else sel.vehicle_fit)
     detect = with_track_fit(detect, next((h for h in hyps if h.kind == "track"), None), settings)
     intervals = hypothesis_intervals(data, base_fit, hyps, ev.masks)
     left = sel.evidence_left(data, ev)
