@@ -92,6 +92,15 @@ case as forecast (docs/performance.md).
 Forecast for floor_sensor_offset j = 0-19 re-run on 0d43cbb (written before the run): 17 or
 18 of 20 as before (the three smallest faults, 0.31-0.40 m, `none`), no wrong name.
 Measured: 17/20, the same three `none`, no wrong name.
+Forecast for the detectability's model-error floor (771fb14) and the menders' pairs (ed9f900;
+the pair rule came from bench seed 8103, so the reservoir's fresh repetitions j = 20-29,
+seeds 8120-8129, are its measure; written 2026-11-28 before the runs):
+airspring_reservoir j = 0-19 named on 13-15 (8103 now named, 8117 and 8118 perhaps; the five
+smallest `none` again, each with a reservoir limit above its hidden size), no wrong name;
+j = 20-29 named on 6-8 of 10, no wrong name, and every `none` answer's reservoir limit above
+the hidden size. Clean j = 20-29 (fresh, seeds 8320-8329) `none` 9-10, no false alarm.
+Near-mimics j = 0-5 as on b689d1d: rigid equipment `none` 4 and `cog_offset` (`moderate`)
+2; load variation `none` or `unexplained`; no catalogue name with confidence `high`.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
