@@ -155,8 +155,8 @@ def test_an_effect_this_sensor_set_cannot_name_at_any_size_says_which_sensors_wo
 
 @pytest.mark.slow
 def test_an_effect_is_judged_on_top_of_the_model_it_is_added_to(campaigns):
-    """On a model with a finding (a bending), an effect of size zero changes nothing: the
-    effect's additions join the model's own rather than replacing them."""
+    """On a model with a finding (a bending), the model itself judged as an effect changes
+    nothing, and an effect takes the place of the model's own additions of its kind only."""
     s = DiagnosisSettings()
     campaign = campaigns["carbody"]
     data, _ = _data(campaign, s, baseline_start(campaign, s.prior_spread), lambda msg: None)
@@ -165,7 +165,29 @@ def test_an_effect_is_judged_on_top_of_the_model_it_is_added_to(campaigns):
                        ext_params=bend.params, make=bend.make, starts=1)
     assert fit.extras.bending_hz is not None
     r = _Responses(data, fit)
-    margin, signif = r.judge(CarExtras(), SensorModel())
-    assert margin <= 0.0 and signif == 0.0
-    margin, signif = r.judge(*EXTENSIONS["cog_offset"].make({"cog_offset": 1.0}))
-    assert signif > 0.0
+    assert r.judge(fit.extras, fit.sensors) == (0.0, 0.0)
+    extras, sensors = r.with_effect(EXTENSIONS["cog_offset"], {"cog_offset": 1.0})
+    assert extras == replace(fit.extras, cog_offset=1.0) and sensors == fit.sensors
+    assert r.judge(extras, sensors)[1] > 0.0
+
+
+def test_an_effects_own_parameters_take_the_place_of_the_models_and_the_rest_stays():
+    """The bending at the limit's frequency and held shape replaces the one found (its node
+    kept); a floor sensor's offset replaces that sensor's, its gain and the other sensors
+    stay; a bogie sensor's offset replaces the fit's, its gyro's gain stays."""
+    from types import SimpleNamespace
+
+    extras = CarExtras(bending_hz=14.0, bending_damping=0.04, bending_mass_ratio=0.13, bending_node=0.45,
+                       reservoir_ratio=0.0)
+    sensors = SensorModel(dx=0.05, gyro_gain=1.02, floor=(("a", 0.05, 1.03), ("b", -0.02, 0.98)))
+    r = _Responses.__new__(_Responses)
+    r.base = SimpleNamespace(extras=extras, sensors=sensors)
+    ex, se = r.with_effect(EXTENSIONS["carbody_bending"], {"bending_hz": 9.0, "bending_damping": 0.02,
+                                                           "bending_mass_ratio": 0.25})
+    assert ex == replace(extras, bending_hz=9.0, bending_damping=0.02, bending_mass_ratio=0.25) and se == sensors
+    ex, se = r.with_effect(EXTENSIONS["floor_sensor_offset"], {"dx:a": 0.7})
+    assert ex == extras and se == replace(sensors, floor=(("a", 0.7, 1.03), ("b", -0.02, 0.98)))
+    ex, se = r.with_effect(EXTENSIONS["sensor_offset"], {"dx": 0.5, "gyro_gain": 1.0})
+    assert se == replace(sensors, dx=0.5)
+    ex, se = r.with_effect(EXTENSIONS["airspring_reservoir"], {"reservoir_ratio": 0.8, "reservoir_corner_hz": 2.5})
+    assert ex == replace(extras, reservoir_ratio=0.8, reservoir_corner_hz=2.5)

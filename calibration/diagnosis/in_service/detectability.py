@@ -42,14 +42,14 @@ sampling scatter is *not observable* with this sensor set.
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
 from ...models.car2d import CarExtras
 from ..limits import Z, Detectability, Limit, Magnitude, search, weakest
 from .evidence import DiagnosisData, signal_bands
-from .extensions import EXTENSIONS, FLOOR_DX_M, joined
+from .extensions import EXTENSIONS, FLOOR_DX_M
 from .response import (FIT_NAMES, ResponseFit, SensorModel, channel_power, input_coherence, input_noise_power,
                        response_nrp, transfer)
 from .track import collapse_shift
@@ -86,7 +86,8 @@ if _missing:
 class _Responses:
     """The baseline's held-out residual and the linearised refit, formed once."""
 
-    def __init__(self, data: DiagnosisData, base: ResponseFit, what: str = "baseline"):
+    def __init__(self, data: DiagnosisData, base: ResponseFit, what: str = "baseline",
+                 baseline: ResponseFit | None = None):
         stats, lay = data.stats, data.layout
         self.data, self.base, self.what = data, base, what
         self.f, self.bw = stats.centres, np.diff(stats.edges)
@@ -98,8 +99,11 @@ class _Responses:
         self.S_all, _ = stats.total()
         self.R0, self.P = response_nrp(stats, lay, test, base, by_band=True)
         self.R_all, _ = response_nrp(stats, lay, all_keys, base, by_band=True)
-        self.eiv = input_noise_power(stats, lay, all_keys, base)
         self.coherence = input_coherence(stats, lay, all_keys, base)
+        # the decision judges every step on the bands its baseline's residual gives (ev.masks)
+        mask_fit = base if baseline is None else baseline
+        self.eiv = input_noise_power(stats, lay, all_keys, mask_fit)
+        self.R_mask = self.R_all if baseline is None else response_nrp(stats, lay, all_keys, baseline, by_band=True)[0]
         self.nu = np.maximum(self.bw * stats.seconds_of(test), 1.0)[:, None]  # held-out averages per band
         self.G0 = self._G(base.extras, base.sensors)
         norm = 1.0 / np.maximum(channel_power(S_tr, 4, n_out).sum(axis=0), 1e-300)
@@ -115,13 +119,30 @@ class _Responses:
     def _G(self, extras, sensors, p=None):
         return transfer(self.base.parameters if p is None else p, extras, sensors, self.data.layout, self.f)
 
+    def with_effect(self, ext, values: dict) -> tuple[CarExtras, SensorModel]:
+        """The fit's extras and sensors with the effect of extension ``ext`` at ``values`` in
+        place of its own: every car addition ``values`` names (a bending at the limit's
+        frequency and held shape in place of the one found, the fit's node kept), a bogie
+        sensor's offset, a floor sensor's offset (the others, and every gain, the fit's)."""
+        ex, se = ext.make(values)
+        own = {f.name for f in fields(CarExtras)}
+        extras = replace(self.base.extras, **{k: getattr(ex, k) for k in values if k in own})
+        sensors = self.base.sensors
+        if "dx" in values:
+            sensors = replace(sensors, dx=se.dx)
+        moved = {n: dx for n, dx, _ in se.floor if f"dx:{n}" in values}
+        if moved:
+            floor = {n: (dx, g) for n, dx, g in sensors.floor}
+            floor.update({n: (dx, floor.get(n, (0.0, 1.0))[1]) for n, dx in moved.items()})
+            sensors = replace(sensors, floor=tuple((n, dx, g) for n, (dx, g) in sorted(floor.items())))
+        return extras, sensors
+
     def judge(self, extras: CarExtras, sensors: SensorModel) -> tuple[float, float]:
         """(gain less Z sigma on the best channel with a model error, 0 when no channel would
-        have one; the effect over Z sigma on the channel it moves most) if the data carried
-        the effect of ``extras`` / ``sensors``, added to the fit's own."""
+        have one; the largest effect over Z sigma among the channels) if the data carried
+        the model with ``extras`` / ``sensors`` (:meth:`with_effect`) instead of the fit's."""
         s = self.data.settings
-        dG = self._G(joined(self.base.extras, extras, _EXTRAS), joined(self.base.sensors, sensors, SensorModel())) \
-            - self.G0
+        dG = self._G(extras, sensors) - self.G0
         rhs = np.einsum("pkcj,kjl,kcl->p", self.D * self.w, self.Suu_tr, (dG * self.w[0]).conj()).real
         left = dG - np.einsum("p,pkcj->kcj", np.linalg.solve(self.A, rhs), self.D)
         dP = np.einsum("kcj,kjl,kcl->kc", left, self.S_te[:, :4, :4], left.conj()).real
@@ -131,7 +152,7 @@ class _Responses:
         P = self.P + np.einsum("kcj,kjl,kcl->kc", dG, self.S_te[:, :4, :4], dG.conj()).real \
             + 2 * np.einsum("kcj,kcj->kc", dG, Syu.conj()).real
         masks = signal_bands(np.maximum(P, 0.0), self.bw, s.signal_factor) \
-            & (self.eiv < s.input_noise_share * (self.R_all + dP_all))
+            & (self.eiv < s.input_noise_share * (self.R_mask + dP_all))
         before = np.sum(np.where(masks, self.R0 + dP, 0.0), axis=0)
         added = np.sum(np.where(masks, dP, 0.0), axis=0)
         sigma = np.sqrt(np.sum(np.where(masks, 2 * dP * self.R0 / self.nu, 0.0), axis=0))
@@ -163,7 +184,7 @@ def _response_limit(name: str, ext, r: _Responses, bar: float) -> Limit:
 
     def judge_at(held: dict, parameter: str):
         def judge(theta: float) -> tuple[float, float]:
-            out = [r.judge(*ext.make({**held, parameter: sgn * theta}))
+            out = [r.judge(*r.with_effect(ext, {**held, parameter: sgn * theta}))
                    for sgn in ((1.0, -1.0) if mag.signed else (1.0,))]
             return min(o[0] for o in out), min(o[1] for o in out)
         return judge
@@ -307,7 +328,7 @@ def detectability(data: DiagnosisData, base: ResponseFit, vehicle: ResponseFit |
         bar = s.bar(ext.n_params)
         if ext.kind == "response":
             r = r or (_Responses(data, base) if vehicle is None else
-                      _Responses(data, vehicle, "model with the properties found"))
+                      _Responses(data, vehicle, "model with the properties found", baseline=base))
             limits.append(_response_limit(name, ext, r, bar))
         elif ext.kind == "wheel":
             limits.append(_wheel_limit(data, bar))

@@ -290,13 +290,13 @@ def combined(first: Extension, then: Extension) -> Extension:
     def make(v):
         ex_a, se_a = first.make({k: x for k, x in v.items() if k in names_a})
         ex_b, se_b = then.make({k: x for k, x in v.items() if k not in names_a})
-        return joined(ex_a, ex_b, CarExtras()), joined(se_a, se_b, SensorModel())
+        return _joined(ex_a, ex_b, CarExtras()), _joined(se_a, se_b, SensorModel())
 
     return Extension(f"{first.name}+{then.name}", "response", f"{first.description}; {then.description}",
                      first.params + then.params, make, per_run=first.per_run or then.per_run)
 
 
-def joined(a, b, default):
+def _joined(a, b, default):
     """``a`` with every field ``b`` sets away from ``default`` taken from ``b``."""
     return replace(a, **{f.name: getattr(b, f.name) for f in fields(b)
                          if getattr(b, f.name) != getattr(default, f.name)})

@@ -12,7 +12,8 @@ The data has three parts that no extension shares, each decided on its own:
   it adds on held-out data, and so on while one passes, up to ``MAX_RESPONSE_STEPS`` causes.
   When none passes at a step because each leaves the systematic residual of another effect
   or loses on the channel the other explains (two effects hide each other), the leading
-  ones are tried in pairs (:func:`_pair`), at the first step and at later ones alike.
+  ones are tried in pairs (:func:`_pair`), at the first step and at later ones alike, and
+  one that loses on a channel with each that mends that channel (:func:`_menders`).
 
 A passing hypothesis whose fitted size is what every vehicle or track has (a carbody
 bending above the catalogue's range, a track stiffer than its soft track:
