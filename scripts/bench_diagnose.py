@@ -101,6 +101,13 @@ j = 20-29 named on 6-8 of 10, no wrong name, and every `none` answer's reservoir
 the hidden size. Clean j = 20-29 (fresh, seeds 8320-8329) `none` 9-10, no false alarm.
 Near-mimics j = 0-5 as on b689d1d: rigid equipment `none` 4 and `cog_offset` (`moderate`)
 2; load variation `none` or `unexplained`; no catalogue name with confidence `high`.
+Measured (ae8cee7): reservoir 13/20 on j = 0-19 (8103 named) and 8/10 on j = 20-29, 21/30,
+no wrong name; the six `none` answers' limits above the hidden size on five (8123: 0.85
+given, 0.97 hidden); clean j = 20-29 `none` 8, `unexplained` 2 (8321, 8323), no false
+alarm; near-mimics as forecast (docs/performance.md).
+Forecast for cog_offset and carbody_bending j = 0-9 re-run on 9893a3f (written before the
+run; the menders add pairs only where a candidate loses on a channel): 10/10 each as on
+050abbf, no wrong name.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
