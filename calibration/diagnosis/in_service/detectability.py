@@ -13,7 +13,7 @@ predicted from the model:
   signal bands that data with the effect would have; a perfect extension removes it
   again. The gain on a channel is that addition over the baseline's measured held-out
   residual plus it. As in the decision, a gain counts only on a channel with a model
-  error: its systematic residual with the effect (the baseline's, held-out error x input
+  error: its systematic residual with the effect (the fit's, held-out error x input
   coherence, plus the addition) at or above ``systematic_floor`` of its power. Without
   that rule the limit read gains the decision never counts (a reservoir's on a bogie
   channel already within a model's accuracy) and ``none`` claimed too much: on bench
@@ -21,9 +21,12 @@ predicted from the model:
   0.54-0.66 had gone unnamed.
 * The "baseline" of a response limit is the model the diagnosis ends with when it names no
   vehicle cause (the vehicle's properties found: its own bending, its equipment, the
-  journeys' loads), an effect of the limit's size added to it: a cause is judged after
+  journeys' loads), the effect's own parameters in place of the model's of their kind
+  (:meth:`_Responses.with_effect`), on the baseline's signal bands: a cause is judged after
   those, and against the baseline alone the carbody's own bending would stand in the
-  residual every effect is measured against. Otherwise the baseline fit.
+  residual every effect is measured against. Otherwise the baseline fit. The linearised
+  refit moves the car's parameters only, not the properties' own, which the decision's
+  refit also moves: on that model the limits lean optimistic.
 * **wheel_out_of_round**: a radius amplitude A at wavelength lambda is a line of curvature
   A (2 pi / lambda)^2 in the consistency channel, mean square half its square, against
   the channel's measured held-out mean square.

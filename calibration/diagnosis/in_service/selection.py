@@ -194,7 +194,8 @@ def _pair(data: DiagnosisData, tried: list[tuple[Extension, Hypothesis]], before
     s = data.settings
     blocked = _blocked(s, tried)
     pairs = [(x, y) for i, x in enumerate(blocked) for y in blocked[i + 1:]]
-    pairs += [(x, y) for x in blocked if x[1].losses for y in _menders(s, x[1], tried) if y not in blocked]
+    held = {id(h) for _, h in blocked}
+    pairs += [(x, y) for x in blocked if x[1].losses for y in _menders(s, x[1], tried) if id(y[1]) not in held]
     best = None
     for (ea, a), (eb, b) in pairs:
         ab = fit_hypothesis(data, combined(a.extension, eb), base_fit, ev, 0.0, added_to=a)
