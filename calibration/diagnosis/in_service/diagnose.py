@@ -160,7 +160,7 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
         say(f"{name}: held-out gain {h.gain:.1%} on {h.best_channel}")
     sel = select(data, hyps, base_fit, ev, say)
     # no vehicle cause: a cause of any size would have been judged after the properties found
-    vehicle_cause = any(f.role == "cause" and f.hypothesis.kind == "response" for f in sel.findings)
+    vehicle_cause = any(f.hypothesis.kind == "response" for f in sel.causes)
     detect = detectability(data, base_fit, None if vehicle_cause else sel.vehicle_fit)
     detect = with_track_fit(detect, next((h for h in hyps if h.kind == "track"), None), settings)
     intervals = hypothesis_intervals(data, base_fit, hyps, ev.masks)
@@ -169,7 +169,6 @@ def diagnose_in_service(campaign: Campaign, *, settings: DiagnosisSettings = Dia
     cause = sel.cause_name() or ("unexplained" if words else "none")
     best = None
     if sel.causes:  # the extended model: every vehicle finding together, else the rail or wheel cause
-        vehicle_cause = any(f.hypothesis.kind == "response" for f in sel.causes)
         best = sel.vehicle_hypothesis if vehicle_cause else max((f.hypothesis for f in sel.causes),
                                                                 key=lambda h: h.penalised_gain)
     summary = _summary(cause, sel, words + notes(left, settings), ev, hyps, settings, detect, intervals) \
