@@ -418,8 +418,8 @@ def _staged_selection(monkeypatch, errors: dict, blocked: dict, values: dict | N
             if e.per_run:
                 params |= {"load_spread": 0.05, "journey_loads": {}}
         return Hypothesis(extension=ext, evidence_score=score, parameters=params, parameters_at_bounds=(), model={},
-                          heldout_error={n: {"before": float(b), "after": float(a)} for n, b, a in
-                                         zip(names, prev.errors, after)},
+                          heldout_error={n: {"before": float(b), "after": float(a), "reduction": float(r)}
+                                         for n, b, a, r in zip(names, prev.errors, after, red)},
                           residual={n: {"after": {"input_coherence": 0.8}} for n in names},
                           systematic_left=0.6 if why == "left" else 0.1,
                           systematic_after=0.016 if why == "left" else 0.001, best_channel=names[best],

@@ -89,10 +89,10 @@ if _missing:
 class _Responses:
     """The baseline's held-out residual and the linearised refit, formed once."""
 
-    def __init__(self, data: DiagnosisData, base: ResponseFit, what: str = "baseline",
-                 baseline: ResponseFit | None = None):
+    def __init__(self, data: DiagnosisData, base: ResponseFit, baseline: ResponseFit | None = None):
         stats, lay = data.stats, data.layout
-        self.data, self.base, self.what = data, base, what
+        self.data, self.base = data, base
+        self.what = "baseline" if baseline is None else "model with the properties found"
         self.f, self.bw = stats.centres, np.diff(stats.edges)
         n_out = len(lay.responses)
         self.n_out = n_out
@@ -330,8 +330,7 @@ def detectability(data: DiagnosisData, base: ResponseFit, vehicle: ResponseFit |
             continue
         bar = s.bar(ext.n_params)
         if ext.kind == "response":
-            r = r or (_Responses(data, base) if vehicle is None else
-                      _Responses(data, vehicle, "model with the properties found", baseline=base))
+            r = r or (_Responses(data, base) if vehicle is None else _Responses(data, vehicle, baseline=base))
             limits.append(_response_limit(name, ext, r, bar))
         elif ext.kind == "wheel":
             limits.append(_wheel_limit(data, bar))

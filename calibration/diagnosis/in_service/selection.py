@@ -174,9 +174,8 @@ def _menders(s, a: Hypothesis, tried: list[tuple[Extension, Hypothesis]]) -> lis
     rule (bench seed 8103: a mount explaining the rear floor but overshooting on the bogie,
     the reservoir's gain alone under the bar)."""
     def mends(h: Hypothesis) -> bool:
-        return any(e["before"] > 0 and 1.0 - e["after"] / e["before"] >= s.min_gain
-                   for e in (h.heldout_error[c] for c in a.losses))
-    return [(e, h) for e, h in tried if h is not a and h.kind == "response" and mends(h)]
+        return any((h.heldout_error[c]["reduction"] or 0.0) >= s.min_gain for c in a.losses)
+    return [(e, h) for e, h in tried if h is not a and mends(h)]
 
 
 def _pair(data: DiagnosisData, tried: list[tuple[Extension, Hypothesis]], before: ResponseFit,
