@@ -109,6 +109,12 @@ Forecast for cog_offset and carbody_bending j = 0-9 re-run on 9893a3f (written b
 run; the menders add pairs only where a candidate loses on a channel): 10/10 each as on
 050abbf, no wrong name.
 Measured: cog_offset 10/10 and carbody_bending 10/10, no wrong name.
+Forecast for the cases not yet run on the menders' code, re-run on 780e84e (written
+2026-11-28 before the runs): floor_sensor_offset j = 0-19 17/20 (the three smallest faults
+`none`), no wrong name; sensor_offset j = 0-9 10/10; suspension_friction j = 0-19 `none` or
+`unexplained` on 19-20, no catalogue name with confidence `high`, the property found on
+9-13; both combined cases both named 3/3; bogie-only `none` with the carbody effects named
+not observable 3/3.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
