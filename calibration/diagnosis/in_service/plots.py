@@ -79,9 +79,12 @@ def _residual_psd(d: InServiceDiagnosis, path: Path) -> Path:
     f, bw = stats.centres, np.diff(stats.edges)
     secs = stats.seconds_of(keys)
     R0, P = response_nrp(stats, lay, keys, base, by_band=True)
-    R1 = None
+    R1 = R2 = None
     if best is not None:
         R1, _ = response_nrp(stats, lay, keys, best.fit, by_band=True)
+    # the model the diagnosis ends with, properties included: what it still gets wrong
+    if d.extended is not None and (best is None or d.extended is not best.fit):
+        R2, _ = response_nrp(stats, lay, keys, d.extended, by_band=True)
     n = len(lay.responses)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.2 * n), sharex=True, squeeze=False)
     for c, ax in enumerate(axes[:, 0]):
@@ -89,6 +92,8 @@ def _residual_psd(d: InServiceDiagnosis, path: Path) -> Path:
         ax.loglog(f, R0[:, c] / bw / secs, color="tab:red", lw=0.9, label="residual, baseline")
         if R1 is not None:
             ax.loglog(f, R1[:, c] / bw / secs, color="tab:blue", lw=0.9, label=f"residual, with {best.name}")
+        if R2 is not None:
+            ax.loglog(f, R2[:, c] / bw / secs, color="tab:green", lw=0.9, label="residual, with every finding")
         ax.set_ylabel(lay.response_names[c], fontsize=7)
     axes[0, 0].legend(fontsize=7)
     axes[0, 0].set_title(f"held-out runs, residual PSD; cause: {d.cause}", fontsize=9)
