@@ -79,6 +79,10 @@ class IdentifySettings:
     # of the trailing rail that is not the leading rail's delayed copy; below it the
     # two-input estimate is not used (the same document gives the campaigns behind 0.3).
     min_separability: float = 0.3
+    # A mode whose delete-one-journey standard error exceeds this share of its frequency
+    # is reported undetermined: leaving one journey out moves it further than the
+    # accuracy a calibration target needs (carbody modes, bogie modes).
+    max_relative_std: tuple[float, float] = (0.03, 0.02)
 
     def __post_init__(self):
         checks.increasing(self, "carbody_band", "bogie_band", low=0.0)
@@ -89,6 +93,9 @@ class IdentifySettings:
         checks.whole(self, "io_segments")
         checks.non_negative(self, "peak_prominence")
         checks.fraction(self, "min_coherence", "min_separability", closed=True)
+        if len(self.max_relative_std) != 2 or not all(0 < x for x in self.max_relative_std):
+            raise ValueError(f"IdentifySettings.max_relative_std must be two shares > 0 (carbody, bogie), "
+                             f"got {self.max_relative_std!r}")
 
 
 @dataclass(frozen=True)
@@ -398,7 +405,7 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     damping = prior_damping_ranges(campaign, prior)
     for m in list(modes):
         why = (outside(m.label, m.frequency_hz, ranges) or damping_outside(m.label, m.damping_ratio, damping)
-               or _no_peak(m))
+               or _no_peak(m) or _unsteady(m, settings))
         if why:
             modes.remove(m)
             undetermined.append(UndeterminedMode(m.label, why))
@@ -417,6 +424,14 @@ def _no_peak(m: IdentifiedMode) -> str | None:
         return None
     return (f"the fitted pole at {m.frequency_hz:.3g} Hz is damped {m.damping_ratio:.2f}, above "
             f"{NO_PEAK_DAMPING:.2f}: its response has no resonance peak to fix the frequency")
+
+
+def _unsteady(m: IdentifiedMode, settings: IdentifySettings) -> str | None:
+    limit = settings.max_relative_std[0 if m.label.startswith("carbody") else 1]
+    if m.frequency_std_hz is None or m.frequency_std_hz <= limit * m.frequency_hz:
+        return None
+    return (f"its frequency ({m.frequency_hz:.3g} Hz) moves with the journeys: a standard error of "
+            f"{m.frequency_std_hz / m.frequency_hz:.1%} when one is left out, more than {limit:.0%}")
 
 
 def unpaired_carbody(modes: list[IdentifiedMode], undetermined: list[UndeterminedMode]):
