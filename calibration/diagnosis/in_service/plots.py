@@ -17,6 +17,10 @@ from .track import transmissibility2
 if TYPE_CHECKING:
     from .result import InServiceDiagnosis
 
+#: a model output's PSD unit by its kind (:class:`~calibration.models.car2d.Output`), SI
+PSD_UNITS = {"displacement": "m^2/Hz", "velocity": "(m/s)^2/Hz", "acceleration": "(m/s^2)^2/Hz",
+             "pitch_angle": "rad^2/Hz", "pitch_rate": "(rad/s)^2/Hz"}
+
 
 def plot_diagnosis(diagnosis: InServiceDiagnosis, stem) -> list[Path]:
     """``<stem>_residual_psd.png`` and ``<stem>_speed_map.png``; returns their paths."""
@@ -94,7 +98,7 @@ def _residual_psd(d: InServiceDiagnosis, path: Path) -> Path:
             ax.loglog(f, R1[:, c] / bw / secs, color="tab:blue", lw=0.9, label=f"residual, with {best.name}")
         if R2 is not None:
             ax.loglog(f, R2[:, c] / bw / secs, color="tab:green", lw=0.9, label="residual, with every finding")
-        ax.set_ylabel(lay.response_names[c], fontsize=7)
+        ax.set_ylabel(f"{lay.response_names[c]}\n[{PSD_UNITS[lay.responses[c].kind]}]", fontsize=7)
     axes[0, 0].legend(fontsize=7)
     axes[0, 0].set_title(f"held-out runs, residual PSD; cause: {d.cause}", fontsize=9)
     axes[-1, 0].set_xlabel("frequency [Hz]")
@@ -110,7 +114,7 @@ def _speed_map(d: InServiceDiagnosis, path: Path) -> Path:
         i = stats.channels.index(name)
         rows = [sum(stats.S[k][:, i, i].real for k in stats.S if k[1] == vb)
                 / stats.seconds_of({k for k in stats.S if k[1] == vb}) / bw for vb in bins]
-        label = f"{name} PSD"
+        label, unit = f"{name} PSD", PSD_UNITS["acceleration"]
     else:
         ch = d.evidence.channels
         name = max(ch, key=lambda n: max([p["over_floor"] for p in ch[n]["peaks"]] + [ch[n]["input_coherence"]]))
@@ -120,7 +124,7 @@ def _speed_map(d: InServiceDiagnosis, path: Path) -> Path:
             keys = {k for k in stats.S if k[1] == vb}
             R, _ = response_nrp(stats, d.layout, keys, base, by_band=True)
             rows.append(R[:, c] / bw / stats.seconds_of(keys))
-        label = f"{name}: baseline residual PSD"
+        label, unit = f"{name}: baseline residual PSD", PSD_UNITS[d.layout.responses[c].kind]
     fig, ax = plt.subplots(figsize=(9, 4.5))
     v = np.array(bins) + d.settings.records.speed_bin / 2
     img = np.log10(np.maximum(np.array(rows), 1e-300))
@@ -130,5 +134,5 @@ def _speed_map(d: InServiceDiagnosis, path: Path) -> Path:
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("speed bin [m/s]")
     ax.set_title(f"speed-frequency map, {label} (log10)", fontsize=9)
-    fig.colorbar(mesh, ax=ax)
+    fig.colorbar(mesh, ax=ax, label=f"log10 PSD [{unit}]")
     return save_figure(fig, path)
