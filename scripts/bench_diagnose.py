@@ -115,6 +115,11 @@ Forecast for the cases not yet run on the menders' code, re-run on 780e84e (writ
 `unexplained` on 19-20, no catalogue name with confidence `high`, the property found on
 9-13; both combined cases both named 3/3; bogie-only `none` with the carbody effects named
 not observable 3/3.
+Measured (780e84e): floor_sensor_offset 17/20, the same three smallest `none` (their limits
+0.72-0.95 m, above the hidden 0.31-0.40 m); sensor_offset 10/10; both combined cases both
+named 3/3; bogie-only `none` with the carbody effects not observable 3/3;
+suspension_friction `none` 19/20, the one wrong name 8652 `airspring_reservoir` (confidence
+`moderate`) as before, the property found 11/20 (0.71-1.53x the truth's friction). As forecast.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
