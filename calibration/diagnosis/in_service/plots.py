@@ -86,8 +86,9 @@ def _residual_psd(d: InServiceDiagnosis, path: Path) -> Path:
     R1 = R2 = None
     if best is not None:
         R1, _ = response_nrp(stats, lay, keys, best.fit, by_band=True)
-    # the model the diagnosis ends with, properties included: what it still gets wrong
-    if d.extended is not None and (best is None or d.extended is not best.fit):
+    # with no cause named, the model the diagnosis ends with (its properties): what it still
+    # gets wrong; a vehicle cause's fit is that model already
+    if best is None and d.extended is not None:
         R2, _ = response_nrp(stats, lay, keys, d.extended, by_band=True)
     n = len(lay.responses)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.2 * n), sharex=True, squeeze=False)
