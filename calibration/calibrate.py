@@ -204,6 +204,9 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
     """Identify the campaign's modes (``identified``: its identification made before, an
     identification file's modes read back), then calibrate the car to them within its priors.
 
+    One identified mode is enough: it fixes one parameter combination as two fix two, and
+    the identifiability analysis names every combination left to the priors.
+
     The identifiability intervals use, per mode, the identification's standard error (a
     delete-one-journey jackknife) combined with a systematic floor of 0.5 %: the largest bias of the input-output estimate seen on
     noise-free synthetic data (carbody bounce -0.62 %, seed 1; a single bogie sees both the
@@ -213,9 +216,9 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
 
     modes = identify_in_service(campaign, progress=progress).modes if identified is None else tuple(identified)
     targets = {m.label: m.frequency_hz for m in modes if m.label in LABELS}
-    if len(targets) < 2:
-        raise CampaignError(f"only {len(targets)} mode(s) identified; calibration needs at least two",
-                            path=campaign.root)
+    if not targets:
+        raise CampaignError("no rigid-body mode identified: nothing to calibrate to (the identification says "
+                            "why per mode)", path=campaign.root)
     search = search_from_priors(campaign.meta.priors)
     if not search:
         raise CampaignError("no [priors.NAME] of a searchable parameter "

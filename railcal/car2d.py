@@ -114,7 +114,8 @@ def calibrate(args) -> str:
         out = result.to_json()
         out["identified_modes"] = [m.to_json() for m in modes]
         write_result(args.out, out, "calibration")
-        return (f"calibrated to {len(result.targets)} identified modes: max error {result.max_error_pct:.3g} %; "
+        n = len(result.targets)
+        return (f"calibrated to {n} identified mode{'s' * (n != 1)} ({', '.join(result.targets)}): max error {result.max_error_pct:.3g} %; "
                 f"{result.identifiability['summary']}; wrote {args.out}")
     targets = read_targets(args.targets)
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH

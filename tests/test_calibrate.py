@@ -137,6 +137,24 @@ def test_calibrate_command_from_a_campaign_fits_the_identified_modes(synthetic_c
     assert json.loads(again.read_text())["identified_modes"] == data["identified_modes"]
 
 
+def test_one_identified_mode_calibrates_one_combination_and_names_the_rest(synthetic_campaign,
+                                                                             synthetic_identification, tmp_path, capsys):
+    """One mode is fitted, and the analysis says the other parameter combinations stay with the priors."""
+    root, _ = synthetic_campaign
+    ident = json.loads(synthetic_identification[0].read_text())
+    ident["modes"] = [m for m in ident["modes"] if m["label"] == "carbody_bounce"]
+    path, out = tmp_path / "one.json", tmp_path / "cal.json"
+    path.write_text(json.dumps(ident))
+    assert main(["calibrate", str(root), "--identification", str(path), "--refine", "--runs", "2", "--quiet",
+                 "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert [r["label"] for r in data["fit"]] == ["carbody_bounce"] and abs(data["fit"][0]["error_pct"]) < 0.1
+    ident_json = data["identifiability"]
+    assert ident_json["rank"] == 1 and len(ident_json["undetermined_directions"]) == len(ident_json["parameters"]) - 1
+    printed = capsys.readouterr().out
+    assert "calibrated to 1 identified mode (carbody_bounce)" in printed and "1 frequency determines 1 of" in printed
+
+
 def test_calibrate_refuses_an_identification_of_other_files(synthetic_campaign, tmp_path, capsys):
     """An identification file is taken only for the campaign it was made from, as it is."""
     import shutil
@@ -150,7 +168,7 @@ def test_calibrate_refuses_an_identification_of_other_files(synthetic_campaign, 
     path.write_text(json.dumps(ident))
     out = tmp_path / "c.json"
     run = ["calibrate", str(copy), "--identification", str(path), "--quiet", "--out", str(out)]
-    assert main(run) == 2 and "at least two" in capsys.readouterr().err  # accepted: no modes in it
+    assert main(run) == 2 and "no rigid-body mode identified" in capsys.readouterr().err  # accepted: no modes
     (copy / "runs" / sorted(p.name for p in (copy / "runs").iterdir())[0]).write_bytes(b"changed")
     assert main(run) == 2 and "campaign_sha256" in capsys.readouterr().err
     for change, key in (({"campaign_sha256": None}, "campaign_sha256"), ({"kind": "stationary_excitation"}, "kind"),

@@ -82,8 +82,10 @@ class Identifiability:
         }
 
     def summary(self) -> str:
-        text = (f"{len(self.labels)} frequencies determine {self.rank} of {len(self.names)} parameter "
-                f"combinations; {len(self.undetermined)} cannot be determined")
+        n = len(self.labels)
+        verb = "frequency determines" if n == 1 else "frequencies determine"
+        text = (f"{n} {verb} {self.rank} of {len(self.names)} parameter combinations; "
+                f"{len(self.undetermined)} cannot be determined")
         if self.undetermined:
             text += ": " + "; ".join(f"({d.describe()})" for d in self.undetermined)
         if self.at_bound:
