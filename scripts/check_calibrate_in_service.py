@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.calibrate import calibrate_campaign
+from calibration.calibrate import calibrate_campaign, pole_shifts
 from calibration.data.campaign import open_campaign
 from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
 from calibration.models.parameters import CarParameters
@@ -46,7 +46,7 @@ def main() -> int:
             root = Path(tmp) / f"c{seed}"
             truth = synth_in_service(root, seed=seed, fmt="parquet",
                                      settings=InServiceSettings(journeys=10, line=LineSpec(length=40_000.0)))
-            res, _ = calibrate_campaign(open_campaign(root), runs=args.runs, seed=seed, refine_result=True)
+            res, modes = calibrate_campaign(open_campaign(root), runs=args.runs, seed=seed, refine_result=True)
             ident = res.identifiability
             names = ident["parameters"]
             x = np.log(np.array([truth["parameters"][n] for n in names]) /
@@ -54,9 +54,13 @@ def main() -> int:
             inside = [bool(lo <= np.array(d["vector"]) @ x <= hi)
                       for d in ident["determined_directions"] for lo, hi in [d["interval_95_log"]]]
             true_f = frequencies_by_label(undamped_modes(build_car(CarParameters(**truth["parameters"]))))
+            true_shift = pole_shifts(CarParameters(**truth["parameters"]), res.targets)
+            true_pole = {k: true_f[k] * true_shift[k] for k in res.targets}
             cal_f = frequencies_by_label(undamped_modes(build_car(res.parameters)))
             row = {"seed": seed, "max_fit_error_pct": round(res.max_error_pct, 6),
                    "undamped_error_pct": {k: round(100 * (cal_f[k] / true_f[k] - 1), 3) for k in res.targets},
+                   "identified_vs_truth_pole_pct": {m.label: round(100 * (m.frequency_hz / true_pole[m.label] - 1), 3)
+                                                    for m in modes if m.label in true_pole},
                    "true_inside_95": inside, "undetermined": len(ident["undetermined_directions"]),
                    "parameter_error_pct": {n: round(100 * (getattr(res.parameters, n) / truth["parameters"][n] - 1), 1)
                                            for n in names}}
