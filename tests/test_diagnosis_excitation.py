@@ -288,6 +288,38 @@ def test_a_cause_is_sure_when_its_gain_holds_over_the_channels_resampled():
     assert confidences([even], None, s)[0] is None
 
 
+def test_a_cause_fitted_to_a_search_limit_is_at_most_moderate():
+    """A fit that ends on a limit of its own search (an equipment's mount damping at its
+    lowest, seed 6752: a rigidly bolted mass) may stand in for another cause: the same
+    held-out gain that is `high` within the limits is `moderate` there, naming the limit."""
+    s = ExcitationDiagnosisSettings()
+    before = np.linspace(5.0, 15.0, 27)
+    even = _hypothesis("even", before, before * np.linspace(0.6, 0.4, 27))
+    pressed = replace(even, at_limits=("mounting_damping_ratio (lower)",))
+    assert confidences([even], even, s)[0].word == "high"
+    c, _ = confidences([pressed], pressed, s)
+    assert c.word == "moderate" and "mounting_damping_ratio (lower)" in c.why and c.gain == pytest.approx(even.gain)
+
+
+def test_an_extensions_limits_are_read_from_its_own_unknowns_and_a_softenings_null_end_is_not_one():
+    from calibration.diagnosis.excitation.fitting import Fitted
+
+    def fitted(extension, ext_x, lo, hi):
+        x = np.r_[np.zeros(3), ext_x]  # three factors, no slots, then the extension's unknowns
+        return Fitted("h", SimpleNamespace(layout=Layout(3, 0, extension)), x, 1.0, None,
+                      (np.asarray(lo, float), np.asarray(hi, float)))
+
+    lo, hi = np.log([100.0, 5.0, 0.01]).tolist() + [-10.0, -1.0], np.log([3000.0, 31.5, 0.3]).tolist() + [10.0, 1.0]
+    inside = [np.log(600.0), np.log(13.0), np.log(0.05), 2.0, 0.8]
+    assert fitted("equipment", inside, lo, hi).extension_at_limits() == []
+    pressed = [np.log(600.0), np.log(13.0), np.log(0.01), 2.0, 1.0]
+    assert fitted("equipment", pressed, lo, hi).extension_at_limits() == ["mounting_damping_ratio (lower)",
+                                                                          "mount_y_m (upper)"]
+    assert fitted("softening", [np.log(1.2)], [np.log(1.2)], [np.log(30.0)]).extension_at_limits() == []
+    assert fitted("softening", [np.log(30.0)], [np.log(1.2)], [np.log(30.0)]).extension_at_limits() == [
+        "rigidity_divisor (upper)"]
+
+
 @pytest.mark.parametrize("size", [1.0, 2.5])
 def test_the_predicted_gain_of_an_effect_is_what_data_carrying_it_give(size):
     """Detectability's prediction against simulated data: a baseline residual of noise (the

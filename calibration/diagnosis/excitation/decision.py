@@ -15,7 +15,7 @@ and no identified mode is left unpaired with the held-out FRF around it misfitte
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -45,6 +45,7 @@ class Hypothesis:
     heldout : this model against the held-out FRFs
     level_scatter : for a factor on every channel, the rms of the channels' level offsets
         about their common one that this model leaves on the held-out FRFs [-] (else None)
+    at_limits : the extension's parameters that end on a limit of their search
     """
 
     name: str
@@ -62,6 +63,7 @@ class Hypothesis:
     penalised_gain: float
     heldout: HeldOut
     level_scatter: float | None = None
+    at_limits: tuple[str, ...] = ()
 
     @property
     def mixed_level(self) -> bool:
@@ -97,6 +99,7 @@ class Hypothesis:
                 "training_error_mean": self.training_error_mean, "heldout_error": self.heldout_error_json(),
                 "best_channel": self.best_channel, "best_channel_reduction": self.best_channel_reduction,
                 "gain": self.gain, "worst_loss": self.worst_loss, "penalised_gain": self.penalised_gain,
+                "at_limits": list(self.at_limits),
                 **({} if self.level_scatter is None else {"level_scatter": self.level_scatter})}
 
 
@@ -111,7 +114,8 @@ def judge(ctx: Context, ext: ExcitationExtension, fitted: Fitted, before: np.nda
     scatter = level_scatter(ctx.meas_test, held.H, ctx.settings.floor) if ext.uniform_level else None
     return Hypothesis(ext.name, ext.description, params, ext.n_params, ext.at_null_end(params),
                       fitted.factors(ctx.names), fitted.train_error / len(ctx.sensors), ctx.sensors, before, after,
-                      gain, float(loss.max()), gain - ctx.settings.penalty * ext.n_params, held, scatter)
+                      gain, float(loss.max()), gain - ctx.settings.penalty * ext.n_params, held, scatter,
+                      tuple(fitted.extension_at_limits()))
 
 
 def passes(h: Hypothesis, settings: ExcitationDiagnosisSettings) -> bool:
@@ -138,14 +142,22 @@ def confidences(hypotheses: Sequence[Hypothesis], best: Hypothesis | None,
     bar alone): the held-out channels are the units resampled
     (:mod:`calibration.diagnosis.confidence`). A channel's E adds to the total the gain is
     taken over, and which points of the floor were instrumented is a choice the gain should
-    not hang on."""
+    not hang on. A cause whose fit ends on a search limit of its own parameters is at most
+    ``moderate``: the in-service diagnosis's reading of a property at a bound (standing in
+    for something it cannot model), here for a rigidly bolted mass fitted as resiliently
+    mounted equipment with its mount damping at the lowest the search allows (seed 6752)."""
     s = settings
     bar = {h.name: s.bar(h.n_params) for h in hypotheses}
     intervals = {h.name: from_units(h.before, h.after, bar[h.name], [], "channels") for h in hypotheses}
     if best is None:
         return None, intervals
     rivals = [h.gain for h in hypotheses if h is not best and passes(h, s)]
-    return from_units(best.before, best.after, bar[best.name], rivals, "channels"), intervals
+    confidence = from_units(best.before, best.after, bar[best.name], rivals, "channels")
+    if best.at_limits and confidence.word == "high":
+        confidence = replace(confidence, word="moderate",
+                             why=f"its fit ends on a search limit ({', '.join(best.at_limits)}): the data ask for "
+                                 "more than this effect can be, so it may stand in for another cause")
+    return confidence, intervals
 
 
 def misfit_alarms(heldout_error: Mapping[str, float], unpaired: Sequence[UnpairedMode],

@@ -13,6 +13,13 @@ from .family import Family, Layout, Slots
 from .least_squares import least_squares, total_error
 
 
+#: the extension's unknowns in the order of :class:`.family.Layout` (masses, frequencies,
+#: dampings and divisors as logs, positions as metres)
+RAW_NAMES = {"equipment": ("equipment_mass_kg", "mounting_frequency_hz", "mounting_damping_ratio", "mount_x_m",
+                           "mount_y_m"),
+             "softening": ("rigidity_divisor",), "force": ("force_gain",)}
+
+
 @dataclass(frozen=True, eq=False)
 class Fitted:
     """A model fitted to the training FRFs: its family on a basis rebuilt at ``x``.
@@ -26,6 +33,7 @@ class Fitted:
     x: np.ndarray
     train_error: float
     panel: str | None = None
+    ext_bounds: tuple[np.ndarray, np.ndarray] | None = None  # the extension's unknowns' (lo, hi)
 
     @property
     def layout(self) -> Layout:
@@ -53,6 +61,23 @@ class Fitted:
         if self.layout.extension == "force":
             return {"force_gain": float(np.exp(ext[0]))}
         return {}
+
+    def extension_at_limits(self, tol: float = 0.01) -> list[str]:
+        """The extension's parameters within ``tol`` of their range of a search limit, as
+        ``"name (lower)"`` / ``"name (upper)"``; the softening's divisor at 1 is its null
+        end (:attr:`.extensions.ExcitationExtension.null_end`), not a limit here."""
+        if self.ext_bounds is None:
+            return []
+        _, _, ext = self.layout.split(self.x)
+        out = []
+        for name, v, lo, hi in zip(RAW_NAMES.get(self.layout.extension, ()), ext, *self.ext_bounds):
+            if self.layout.extension == "softening" and v - lo <= tol * (hi - lo):
+                continue
+            if v - lo <= tol * (hi - lo):
+                out.append(f"{name} (lower)")
+            elif hi - v <= tol * (hi - lo):
+                out.append(f"{name} (upper)")
+        return out
 
     def modes(self) -> tuple[Modes, np.ndarray]:
         """The model's modes and the damping ratio of each."""
@@ -93,7 +118,9 @@ def fit(ctx: Context, name: str, layout: Layout, slots: Slots, x0, lo, hi, *, pa
     red = basis_at(ctx, layout, x, panel) if red is None else red
     fam = Family.make(red, slots, layout, ctx.default_zeta)
     inside = bool(np.all((x >= lo) & (x <= hi)))  # a start outside the bounds is no answer
-    best = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor) if inside else np.inf, panel)
+    n_ext = x.size - layout.n_p - layout.n_slots  # the tail of x; re-taking the slots leaves it
+    ext_bounds = (np.asarray(lo)[x.size - n_ext:], np.asarray(hi)[x.size - n_ext:])
+    best = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor) if inside else np.inf, panel, ext_bounds)
     for _ in range(1 if quick else rounds):
         free = np.ones(x.size, bool)
         if quick:
@@ -107,7 +134,7 @@ def fit(ctx: Context, name: str, layout: Layout, slots: Slots, x0, lo, hi, *, pa
             red = basis_at(ctx, layout, x, panel)
             slots, layout, x, lo, hi = retake_slots(ctx, fam, modes, zeta, layout, x, lo, hi)
         fam = Family.make(red, slots, layout, ctx.default_zeta)
-        now = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor), panel)
+        now = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor), panel, ext_bounds)
         best = now if now.train_error < best.train_error else best
         if quick or moved < tol:
             break
