@@ -13,14 +13,11 @@ directions undetermined: each run ends at a different point of a curved solution
 and their mean lies off it (two swarm runs that each fit to 1e-5 average to a 0.3 % misfit
 in the tests). The fit table is therefore computed at the reported average, never copied
 from a run. The constrained refinement of issue 3 (CasADi) is what should start from it.
-
-Targets from a file are undamped frequencies, as the seed's Table 4. Targets identified from
-a campaign are poles, and :func:`calibrate_to_poles` matches the model's poles to them.
 """
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +25,6 @@ import numpy as np
 from .data.campaign import read_input_file
 from .data.errors import InputError
 from .models.batch import MASS_NAMES, STIFFNESS_NAMES, LinearFamily
-from .models.car2d import build_car, damped_modes, frequencies_by_label, undamped_modes
 from .models.parameters import CarParameters
 from .models.vehicles import INTERCITY_TRAILER
 from .optimisers import OPTIMISERS, SearchParameter
@@ -40,8 +36,6 @@ from .optimisers.refine import refine
 
 LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 SEARCHABLE = MASS_NAMES + STIFFNESS_NAMES
-POLE_ITERATIONS = 8
-POLE_RTOL = 1e-7  # relative change of the targets that ends the iteration; far below any mode's uncertainty
 
 
 def read_targets(path, labels=LABELS, model: str = "car2d") -> dict[str, float]:
@@ -119,7 +113,6 @@ class CalibrationResult:
     fit: list = field(default_factory=list)
     identifiability: dict = field(default_factory=dict)
     refinement: dict | None = None
-    pole_matching: dict | None = None
 
     @property
     def max_error_pct(self) -> float:
@@ -128,19 +121,13 @@ class CalibrationResult:
     def to_json(self) -> dict:
         return {"model": "car2d", "method": self.method, "objective": self.objective,
                 "parameters": self.parameters.as_dict(), "fit": self.fit, "max_error_pct": self.max_error_pct,
-                "identifiability": self.identifiability, "refinement": self.refinement,
-                "pole_matching": self.pole_matching, "runs": self.runs}
+                "identifiability": self.identifiability, "refinement": self.refinement, "runs": self.runs}
 
 
 def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...], *, base: CarParameters = INTERCITY_TRAILER,
                   method: str = "ce", objective: str = "sse", runs: int = 10, seed: int = 0, settings=None,
-                  sigma_f=0.005, refine_result: bool = False, retarget=None) -> CalibrationResult:
-    """``sigma_f``: relative uncertainty of the target frequencies, one number or {label: value}.
-
-    ``retarget(parameters) -> targets``, when given, moves the targets with the result (see
-    :func:`calibrate_to_poles`): the search runs again on the targets at its first result, or,
-    with ``refine_result``, the refinement repeats from its last point until the targets
-    change by at most ``POLE_RTOL``; ``pole_matching["changes"]`` records each change."""
+                  sigma_f=0.005, refine_result: bool = False) -> CalibrationResult:
+    """``sigma_f``: relative uncertainty of the target frequencies, one number or {label: value}."""
     if method not in OPTIMISERS:
         raise InputError(f"unknown method {method!r}; have {', '.join(OPTIMISERS)}", key="--method")
     if objective not in OBJECTIVES:
@@ -159,92 +146,35 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
     def evaluate(X):
         return fn(family.frequencies(X), targets)
 
-    def search_runs():
-        results = []
-        for k in range(runs):
-            r = optimiser(evaluate, search, np.random.default_rng([seed, k]), settings=settings)
-            x = r.mean if method == "ce" else r.best
-            F = family.frequencies(x[None, :])
-            results.append({"run": k + 1, "parameters": dict(zip(names, map(float, x))),
-                            "frequencies_hz": {lbl: float(F[lbl][0]) for lbl in targets},
-                            "objective": float(evaluate(x[None, :])[0]),
-                            "iterations": int(getattr(r, "generations", getattr(r, "iterations", 0)))})
-        finite = [run for run in results if np.isfinite(run["objective"])]
-        if not finite:
-            raise InputError("no run found parameters with a finite objective: the targets or ranges give no "
-                             "model with every targeted mode", key="--targets")
-        return results, np.mean([[run["parameters"][n] for n in names] for run in finite], axis=0)
-
-    def moved(x) -> float:
-        """Move the targets to parameters ``x``; the largest relative change."""
-        nonlocal targets
-        new = retarget(family.base.replace(**dict(zip(names, map(float, x)))))
-        change = max(abs(new[lbl] / targets[lbl] - 1) for lbl in targets)
-        targets = new
-        return change
-
-    changes = []
-    results, mean = search_runs()
-    if retarget is not None and not refine_result:
-        changes.append(moved(mean))
-        results, mean = search_runs()
+    results = []
+    for k in range(runs):
+        r = optimiser(evaluate, search, np.random.default_rng([seed, k]), settings=settings)
+        x = r.mean if method == "ce" else r.best
+        F = family.frequencies(x[None, :])
+        results.append({"run": k + 1, "parameters": dict(zip(names, map(float, x))),
+                        "frequencies_hz": {lbl: float(F[lbl][0]) for lbl in targets},
+                        "objective": float(evaluate(x[None, :])[0]),
+                        "iterations": int(getattr(r, "generations", getattr(r, "iterations", 0)))})
+    finite = [run for run in results if np.isfinite(run["objective"])]
+    if not finite:
+        raise InputError("no run found parameters with a finite objective: the targets or ranges give no "
+                         "model with every targeted mode", key="--targets")
+    mean = np.mean([[run["parameters"][n] for n in names] for run in finite], axis=0)
     low, high = bounds(search)
     refinement = None
     if refine_result:
-        start = mean
-        for _ in range(POLE_ITERATIONS if retarget is not None else 1):
-            r = refine(family, mean, targets, low, high, judge=lambda f, t: float(np.asarray(fn(f, t))))
-            mean = r.parameters
-            if retarget is None:
-                break
-            changes.append(moved(mean))
-            if changes[-1] <= POLE_RTOL:
-                break
+        r = refine(family, mean, targets, low, high, judge=lambda f, t: float(np.asarray(fn(f, t))))
         refinement = {"status": r.status, "improved": r.improved, "objective_start": r.objective_start,
                       "objective_end": r.objective_end, "max_relative_error": r.max_relative_error,
-                      "start_parameters": dict(zip(names, map(float, start)))}
+                      "start_parameters": dict(zip(names, map(float, mean)))}
+        mean = r.parameters
     final = family.base.replace(**dict(zip(names, map(float, mean))))
     F = family.frequencies(mean[None, :])
     fit = [{"label": lbl, "measured_hz": f, "model_hz": float(F[lbl][0]),
             "error_pct": float(100 * (F[lbl][0] / f - 1)), "mac": None} for lbl, f in targets.items()]
     sigma = [sigma_f[k] for k in targets] if isinstance(sigma_f, dict) else sigma_f
     ident = identifiability(family, mean, tuple(targets), sigma_f=sigma, low=low, high=high).to_json()
-    matching = None if retarget is None else {"iterations": len(changes), "changes": changes,
-                                               "converged": bool(changes) and changes[-1] <= POLE_RTOL}
-    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement, matching)
-
-
-def pole_shifts(params: CarParameters, labels) -> dict[str, float]:
-    """Per mode label, the car's pole natural frequency |lambda| / 2 pi over its undamped
-    frequency (both the lowest of the label); 1 where no oscillating damped mode has it."""
-    asm = build_car(params)
-    undamped = frequencies_by_label(undamped_modes(asm))
-    damped = frequencies_by_label([m for m in damped_modes(asm) if m.damped_frequency_hz is not None])
-    return {lbl: damped[lbl] / undamped[lbl] if lbl in damped and lbl in undamped else 1.0 for lbl in labels}
-
-
-def calibrate_to_poles(poles: dict[str, float], search: tuple[SearchParameter, ...], *, base: CarParameters,
-                       **kwargs) -> CalibrationResult:
-    """:func:`calibrate_car` to identified poles: an identification estimates each mode's pole,
-    |lambda| / 2 pi, which the car's non-proportional damping (kept at ``base``'s values, not
-    searched) moves off its undamped frequency, by 0.9 % for the Manchester car's carbody
-    pitch. The search fits undamped frequencies, so its targets are the poles divided by the
-    model's shifts, which move with the result (``retarget``). The fit table compares the
-    model's poles with the identified ones."""
-    start = base.replace(**{p.name: p.mean for p in search})
-
-    def undamped_targets(params: CarParameters) -> dict[str, float]:
-        shift = pole_shifts(params, poles)
-        return {lbl: f / shift[lbl] for lbl, f in poles.items()}
-
-    result = calibrate_car(undamped_targets(start), search, base=base, retarget=undamped_targets, **kwargs)
-    shifts = pole_shifts(result.parameters, poles)
-    undamped = frequencies_by_label(undamped_modes(build_car(result.parameters)))
-    fit = [{"label": lbl, "measured_hz": f, "model_hz": undamped[lbl] * shifts[lbl],
-            "model_undamped_hz": undamped[lbl], "error_pct": 100 * (undamped[lbl] * shifts[lbl] / f - 1),
-            "mac": None} for lbl, f in poles.items()]
-    matching = {**result.pole_matching, "pole_shift": shifts, "damping_from": "base (not searched)"}
-    return replace(result, targets=dict(poles), fit=fit, pole_matching=matching)
+    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement)
 
 
 SEED_TABLE4 = {"carbody_bounce": 1.08, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}
@@ -295,6 +225,6 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
                             f"({', '.join(SEARCHABLE)}): nothing to calibrate", path=campaign.root / "campaign.toml",
                             key="priors")
     base = prior_parameters(campaign)
-    result = calibrate_to_poles(targets, search, base=base, method=method, objective=objective, runs=runs, seed=seed,
-                                refine_result=refine_result, sigma_f=mode_uncertainties(modes))
+    result = calibrate_car(targets, search, base=base, method=method, objective=objective, runs=runs, seed=seed,
+                           refine_result=refine_result, sigma_f=mode_uncertainties(modes))
     return result, modes

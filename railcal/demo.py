@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.calibrate import calibrate_to_poles, mode_uncertainties, search_from_priors
+from calibration.calibrate import calibrate_car, mode_uncertainties, search_from_priors
 from calibration.calibrate_box import RefineSettings, SwarmSettings, calibrate_box_campaign
 from calibration.data.campaign import open_campaign
 from calibration.data.outputs import write_atomic, write_json_atomic, write_result
@@ -120,9 +120,9 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     write_result(out / "identification.json", ident, "identification")
     say("3/11 calibrating the 2D car to the identified modes (Cross-Entropy, CasADi refinement)")
     targets = {m.label: m.frequency_hz for m in result.modes}
-    calibration = calibrate_to_poles(targets, search_from_priors(campaign.meta.priors),
-                                     base=prior_parameters(campaign), runs=demo.car_runs, seed=DEMO_SEED,
-                                     refine_result=True, sigma_f=mode_uncertainties(result.modes))
+    calibration = calibrate_car(targets, search_from_priors(campaign.meta.priors), base=prior_parameters(campaign),
+                                runs=demo.car_runs, seed=DEMO_SEED, refine_result=True,
+                                sigma_f=mode_uncertainties(result.modes))
     write_result(out / "calibration.json", calibration.to_json(), "calibration")
     say("4/11 validating over the track recording")
     validation = validate(campaign, calibration.parameters)

@@ -15,6 +15,16 @@ calibrated undamped frequency sits above the truth's by about the truth car's po
 plus the identification's own error; matching the model's poles instead takes those shifts
 out, leaving the identification's error alone, and every other figure holds.
 
+Measured (seeds 1-5): the forecast failed. On 3c8439d the calibrated carbody pitch sat
+-0.15, +0.28, -0.08, +0.38, +0.15 % off the truth's undamped frequency (mean +0.11 %): the
+identification lies nearer the undamped frequency than the pole on this truth, and against
+the pole its carbody pitch is -0.53, -0.06, -0.46, +0.03, -0.17 % (mean -0.24 %), its bogie
+bounce +0.03 to +0.25 % (mean +0.13 %, against +0.06 % from the undamped). Calibrated to the
+poles (d3829e7 and 309b2b2; fit within 4e-6 %) the pitch came out -0.57, -0.14, -0.53, -0.09,
+-0.32 % (mean -0.33 %) and seed 4 lost the truth from one determined 95 % interval (19 of 20
+inside). Pole matching was therefore taken back out; calibration matches the undamped
+frequencies, the usual convention of model updating.
+
     python scripts/check_calibrate_in_service.py [--seeds 1 2 3 4 5] [--runs 10]
 """
 from __future__ import annotations
@@ -27,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.calibrate import calibrate_campaign, pole_shifts
+from calibration.calibrate import calibrate_campaign
 from calibration.data.campaign import open_campaign
-from calibration.models.car2d import build_car, frequencies_by_label, undamped_modes
+from calibration.models.car2d import build_car, frequencies_by_label, pole_shifts, undamped_modes
 from calibration.models.parameters import CarParameters
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
