@@ -45,6 +45,11 @@ its bar, `unexplained`. So again: clean `unexplained` on most campaigns, no cata
 about 0.03), the rest `unexplained`; softening and force `unexplained` with detectability
 limits above the hidden sizes; the near-mimics `unexplained`, no wrong name.
 
+After the near-mimic rule of 3a3b734 (a cause fitted to a limit of its own search is at most
+`moderate`), written before the fresh rigid-equipment seeds 6753-6755 ran: `unexplained` on
+most, any catalogue name `moderate` at most; the equipment-on-mounts fit, where it gains, with
+its damping or frequency at a limit as on 6751 and 6752.
+
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``6500 + 50 k + j`` (6500-6799, never used before). The magnitude is drawn uniformly in the
 case's range by ``numpy.random.default_rng([6500, k, j])`` (for the force, then its sign), so
