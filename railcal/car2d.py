@@ -115,7 +115,8 @@ def calibrate(args) -> str:
         out["identified_modes"] = [m.to_json() for m in modes]
         write_result(args.out, out, "calibration")
         n = len(result.targets)
-        return (f"calibrated to {n} identified mode{'s' * (n != 1)} ({', '.join(result.targets)}): max error {result.max_error_pct:.3g} %; "
+        return (f"calibrated to {n} identified mode{'s' * (n != 1)} ({', '.join(result.targets)}): "
+                f"max error {result.max_error_pct:.3g} %; "
                 f"{result.identifiability['summary']}; wrote {args.out}")
     targets = read_targets(args.targets)
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH

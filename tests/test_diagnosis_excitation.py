@@ -301,7 +301,7 @@ def test_a_cause_fitted_to_a_search_limit_is_at_most_moderate():
     assert c.word == "moderate" and "mounting_damping_ratio (lower)" in c.why and c.gain == pytest.approx(even.gain)
 
 
-def test_an_extensions_limits_are_read_from_its_own_unknowns_and_a_softenings_null_end_is_not_one():
+def test_an_extensions_sizes_at_their_limits_are_flagged_not_its_place_nor_a_softenings_null_end():
     from calibration.diagnosis.excitation.fitting import Fitted
 
     def fitted(extension, ext_x, lo, hi):
@@ -312,12 +312,15 @@ def test_an_extensions_limits_are_read_from_its_own_unknowns_and_a_softenings_nu
     lo, hi = np.log([100.0, 5.0, 0.01]).tolist() + [-10.0, -1.0], np.log([3000.0, 31.5, 0.3]).tolist() + [10.0, 1.0]
     inside = [np.log(600.0), np.log(13.0), np.log(0.05), 2.0, 0.8]
     assert fitted("equipment", inside, lo, hi).extension_at_limits() == []
-    pressed = [np.log(600.0), np.log(13.0), np.log(0.01), 2.0, 1.0]
-    assert fitted("equipment", pressed, lo, hi).extension_at_limits() == ["mounting_damping_ratio (lower)",
-                                                                          "mount_y_m (upper)"]
+    pressed = [np.log(3000.0), np.log(13.0), np.log(0.01), 2.0, 1.0]  # at the floor's edge: a place, not a size
+    assert fitted("equipment", pressed, lo, hi).extension_at_limits() == ["equipment_mass_kg (upper)",
+                                                                          "mounting_damping_ratio (lower)"]
     assert fitted("softening", [np.log(1.2)], [np.log(1.2)], [np.log(30.0)]).extension_at_limits() == []
     assert fitted("softening", [np.log(30.0)], [np.log(1.2)], [np.log(30.0)]).extension_at_limits() == [
         "rigidity_divisor (upper)"]
+    gain = ([np.log(0.5)], [np.log(2.0)])
+    assert fitted("force", [np.log(0.5)], *gain).extension_at_limits() == ["force_gain (lower)"]
+    assert fitted("force", [np.log(0.93)], *gain).extension_at_limits() == []
 
 
 @pytest.mark.parametrize("size", [1.0, 2.5])
@@ -554,6 +557,20 @@ def test_an_effect_outside_the_catalogue_is_unexplained_with_evidence_pointing_a
     assert result.training_runs == ("run_001",) and result.heldout_runs == ("run_002",)
     assert result.extension is None and result.extension_modes is None
     assert all(h.penalised_gain < FAST.min_gain for h in result.hypotheses)
+    from calibration.diagnosis.excitation.equipment import MASS_RANGE, MOUNT_DAMPING, MOUNT_FREQUENCY
+
+    def edges(value, lo, hi, name):  # the fit's own bounds, read back from its parameters
+        span = np.log(hi / lo)
+        return [f"{name} (lower)"] * bool(np.log(value / lo) <= 0.01 * span) + \
+            [f"{name} (upper)"] * bool(np.log(hi / value) <= 0.01 * span)
+    (equip,) = [h for h in result.hypotheses if h.name == "underfloor_equipment"]
+    q = equip.parameters
+    carbody = q["equipment_mass_kg"] / q["mass_ratio"]
+    expected = (edges(q["equipment_mass_kg"], MASS_RANGE[0] * carbody, MASS_RANGE[1] * carbody, "equipment_mass_kg")
+                + edges(q["mounting_frequency_hz"], MOUNT_FREQUENCY[0] * FAST.band[0],
+                        MOUNT_FREQUENCY[1] * FAST.band[1], "mounting_frequency_hz")
+                + edges(q["mounting_damping_ratio"], *MOUNT_DAMPING, "mounting_damping_ratio"))
+    assert list(equip.at_limits) == expected
     sensor = truth["effect"]["sensor"]
     assert any(f"confined to one channel: {sensor}" in line for line in summary), summary
     # the bracket's resonance is identified at its sensor alone, and not calibrated to (a

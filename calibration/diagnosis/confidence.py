@@ -13,6 +13,9 @@ penalty for the extension's parameters):
 * **moderate**: the gain clears the bar but the interval reaches below it, or a runner-up
   gains about as much;
 * **low**: fewer than ``MIN_UNITS`` held-out units, too few to resample.
+
+A caller may lower the word for reasons outside the gain: the excitation test's cause fitted
+to the edge of its search is at most ``moderate`` (``excitation.decision.confidences``).
 """
 from __future__ import annotations
 

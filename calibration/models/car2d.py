@@ -453,13 +453,14 @@ def frequencies_by_label(modes: list[Mode]) -> dict[str, float]:
 
 def pole_shifts(p, labels) -> dict[str, float]:
     """Per mode label, the pole natural frequency |lambda| / 2 pi of car ``p`` over its undamped
-    frequency (both the lowest of the label); 1 where no oscillating damped mode has it.
+    frequency (both the lowest of the label); NaN where either analysis has no such mode.
     Non-proportional damping makes it differ from 1 (0.9 % for the Manchester car's carbody
     pitch); proportional damping leaves every pole on its undamped frequency."""
     asm = build_car(p)
     undamped = frequencies_by_label(undamped_modes(asm))
     damped = frequencies_by_label([m for m in damped_modes(asm) if m.damped_frequency_hz is not None])
-    return {lbl: damped[lbl] / undamped[lbl] if lbl in damped and lbl in undamped else 1.0 for lbl in labels}
+    return {lbl: damped[lbl] / undamped[lbl] if lbl in damped and lbl in undamped else float("nan")
+            for lbl in labels}
 
 
 # --------------------------------------------------------------------- state space

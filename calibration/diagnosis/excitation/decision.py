@@ -155,8 +155,9 @@ def confidences(hypotheses: Sequence[Hypothesis], best: Hypothesis | None,
     confidence = from_units(best.before, best.after, bar[best.name], rivals, "channels")
     if best.at_limits and confidence.word == "high":
         confidence = replace(confidence, word="moderate",
-                             why=f"its fit ends on a search limit ({', '.join(best.at_limits)}): the data ask for "
-                                 "more than this effect can be, so it may stand in for another cause")
+                             why=f"its fit ends on the edge of the range searched ({', '.join(best.at_limits)}): "
+                                 "the effect as modelled does not meet the data inside its range, so it may stand "
+                                 "in for another cause")
     return confidence, intervals
 
 

@@ -18,6 +18,8 @@ from .least_squares import least_squares, total_error
 RAW_NAMES = {"equipment": ("equipment_mass_kg", "mounting_frequency_hz", "mounting_damping_ratio", "mount_x_m",
                            "mount_y_m"),
              "softening": ("rigidity_divisor",), "force": ("force_gain",)}
+#: unknowns whose search limits are places, not sizes (see :meth:`Fitted.extension_at_limits`)
+NOT_LIMITS = ("mount_x_m", "mount_y_m")
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,17 +65,18 @@ class Fitted:
         return {}
 
     def extension_at_limits(self, tol: float = 0.01) -> list[str]:
-        """The extension's parameters within ``tol`` of their range of a search limit, as
-        ``"name (lower)"`` / ``"name (upper)"``; the softening's divisor at 1 is its null
-        end (:attr:`.extensions.ExcitationExtension.null_end`), not a limit here."""
+        """The extension's sizes within ``tol`` of their range of a search limit, as
+        ``"name (lower)"`` / ``"name (upper)"``. Not judged: a mount's place (the floor's edge
+        is where real equipment hangs, not a size the data push past) and the softening's
+        lowest divisor, its null end (:attr:`.extensions.ExcitationExtension.null_end`)."""
         if self.ext_bounds is None:
             return []
         _, _, ext = self.layout.split(self.x)
         out = []
-        for name, v, lo, hi in zip(RAW_NAMES.get(self.layout.extension, ()), ext, *self.ext_bounds):
-            if self.layout.extension == "softening" and v - lo <= tol * (hi - lo):
+        for name, v, lo, hi in zip(RAW_NAMES[self.layout.extension], ext, *self.ext_bounds, strict=True):
+            if name in NOT_LIMITS:
                 continue
-            if v - lo <= tol * (hi - lo):
+            if v - lo <= tol * (hi - lo) and self.layout.extension != "softening":
                 out.append(f"{name} (lower)")
             elif hi - v <= tol * (hi - lo):
                 out.append(f"{name} (upper)")
@@ -118,8 +121,8 @@ def fit(ctx: Context, name: str, layout: Layout, slots: Slots, x0, lo, hi, *, pa
     red = basis_at(ctx, layout, x, panel) if red is None else red
     fam = Family.make(red, slots, layout, ctx.default_zeta)
     inside = bool(np.all((x >= lo) & (x <= hi)))  # a start outside the bounds is no answer
-    n_ext = x.size - layout.n_p - layout.n_slots  # the tail of x; re-taking the slots leaves it
-    ext_bounds = (np.asarray(lo)[x.size - n_ext:], np.asarray(hi)[x.size - n_ext:])
+    head = layout.n_p + layout.n_slots  # the extension's unknowns follow; re-taking the slots leaves them
+    ext_bounds = (np.asarray(lo)[head:], np.asarray(hi)[head:]) if layout.extension else None
     best = Fitted(name, fam, x, total_error(fam, x, ctx.meas, s.floor) if inside else np.inf, panel, ext_bounds)
     for _ in range(1 if quick else rounds):
         free = np.ones(x.size, bool)
