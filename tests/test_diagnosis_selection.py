@@ -146,6 +146,30 @@ def test_a_hypothesis_passes_on_gain_without_losses_and_explaining_the_systemati
     assert _hypothesis(0.4, None).passes(s)  # no response residual to explain (a wheel or track kind)
 
 
+def test_a_cause_under_the_floor_is_named_only_on_a_large_clean_gain_and_never_for_a_property():
+    """Every channel within a model's accuracy: a reservoir gaining 55 % is a finding (the
+    reservoirs the floor hid gained 50-72 %), 5 % is an adequate model's noise; a loss, a
+    parameter on its bound or a property's sizes keep it out; a gain on a channel with a model
+    error is the ordinary rule's, not this one's."""
+    from calibration.diagnosis.in_service import DiagnosisSettings
+    from calibration.diagnosis.in_service.selection import _under_floor
+
+    s = DiagnosisSettings()
+    ext = EXTENSIONS["airspring_reservoir"]
+    size = {"reservoir_ratio": 0.6, "reservoir_corner_hz": 2.5}
+    h = replace(_hypothesis(0.55, 0.1), extension=ext, parameters=size, on_model_error=False,
+                penalised_gain=0.55 - 0.01 * ext.n_params)
+    assert _under_floor(s, [(ext, h)]) == (ext, h)
+    assert _under_floor(s, [(ext, replace(h, penalised_gain=0.05))]) is None
+    assert _under_floor(s, [(ext, replace(h, losses=("carbody_rear_acc_z",)))]) is None
+    assert _under_floor(s, [(ext, replace(h, parameters_at_bounds=("reservoir_corner_hz",)))]) is None
+    assert _under_floor(s, [(ext, replace(h, on_model_error=True))]) is None
+    assert _under_floor(replace(s, under_floor_gain=None), [(ext, h)]) is None
+    load = EXTENSIONS["journey_load"]  # every vehicle's: a property, whatever it gains
+    assert _under_floor(s, [(load, replace(h, extension=load, parameters={"load_spread": 0.05,
+                                                                            "journey_loads": {}}))]) is None
+
+
 def test_a_candidate_held_back_by_a_loss_is_tried_in_pairs_and_mending_its_partners_loss_counts():
     """A mount explaining the carbody's residual but overshooting on the bogie (a loss) and a
     reservoir leaving the mount's part (the systematic rule) are each held back alone; in

@@ -157,6 +157,32 @@ def _pair_findings(data: DiagnosisData, ev: Evidence, pair) -> list[Finding]:
             for e, alone, added in ((ea, b, ba), (eb, a, ab))]
 
 
+def _under_floor(s, tried: list[tuple[Extension, Hypothesis]]) -> tuple[Extension, Hypothesis] | None:
+    """The cause that no channel's model error asked for but the held-out data do: of the
+    hypotheses that gain only where every channel was within a model's accuracy, the best
+    that gains ``under_floor_gain`` (penalised) with no loss, no parameter of its own on a
+    bound of its range and not a property (what every vehicle has is kept by its own rule).
+    A small reservoir is a fault the model misses by less than the floor; a relative gain
+    this large is not the noise of an adequate model (clean cars: 0-0.5 %)."""
+    if s.under_floor_gain is None:
+        return None
+    def candidate(e: Extension, h: Hypothesis) -> bool:
+        own_bounds = {r.name for r in e.params} & set(h.parameters_at_bounds)
+        return not h.on_model_error and h.penalised_gain >= s.under_floor_gain and not h.losses \
+            and not own_bounds and not e.is_property(_own(e, h)) and not _stands_in(e, h)
+    found = [(e, h) for e, h in tried if candidate(e, h)]
+    return max(found, key=lambda eh: eh[1].penalised_gain, default=None)
+
+
+def _under_floor_finding(data: DiagnosisData, ev: Evidence, before: ResponseFit, e: Extension,
+                         h: Hypothesis) -> Finding:
+    """:func:`_under_floor`'s cause as a finding of confidence ``low``, saying why."""
+    c = _confidence(data, ev, before, h, e, [])
+    c = replace(c, word="low", why=f"{c.why}; but every channel it gains on was within a model's accuracy before "
+                                   "it (the floor), so no model error asked for it")
+    return _finding(e, h, _own(e, h), c)
+
+
 def _blocked(s, tried: list[tuple[Extension, Hypothesis]]) -> list[tuple[Extension, Hypothesis]]:
     """The (extension, hypothesis) pairs that gain the bar on a channel with a model error
     but are held back by the systematic rule or by a loss on another channel: what two
@@ -261,7 +287,11 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
     else:
         pair = _pair(data, [(h.extension, h) for h in response], base_fit, ev.channels, base_fit, ev, say)
         if pair is None:
-            return Selection(tuple(findings), None, None)
+            under = _under_floor(s, [(h.extension, h) for h in response])
+            if under is None:
+                return Selection(tuple(findings), None, None)
+            findings.append(_under_floor_finding(data, ev, base_fit, *under))
+            return _consistent(data, Selection(tuple(findings), under[1].fit, under[1]))
         findings += _pair_findings(data, ev, pair)
         used, current = [pair[0].name, pair[1].name], pair[4]
     def causes():
@@ -282,6 +312,10 @@ def select(data: DiagnosisData, hyps: list[Hypothesis], base_fit: ResponseFit, e
                 _pair(data, tried, current.fit, channel_evidence(data, current.fit, ev.masks)[0], base_fit, ev, say)
             new = [] if pair is None else _pair_findings(data, ev, pair)
             if not new or causes() + sum(f.role == "cause" for f in new) > MAX_RESPONSE_STEPS:
+                under = None if causes() else _under_floor(s, tried)
+                if under is not None:
+                    findings.append(_under_floor_finding(data, ev, current.fit, *under))
+                    current = under[1]
                 break
             findings += new
             used += [pair[0].name, pair[1].name]
