@@ -132,6 +132,12 @@ cog_offset j = 10-19 (8060-8069) 10/10, no `airspring_reservoir`; suspension_fri
 j = 20-24 `none` on 4-5, no catalogue name `high`; rigid_equipment and load_variation
 j = 6-8 no catalogue name `high` (a `low` name may appear); floor_sensor_offset j = 20-24
 named where 0.55 m or more, no other name.
+Measured (fe25210): as forecast. Reservoir 8/10, four of them under the floor (`low`:
+8132, 8133, 8135, 8137, hidden 1.08, 0.83, 1.22, 0.61), two `unexplained` (8134, 8139), no
+wrong name; clean `none` 6, `unexplained` 4 (the rear floor's residual 1.1-3.5 %), no false
+alarm; cog_offset 10/10 (`high` 9, `moderate` 1); friction `none` 5/5; rigid equipment
+`none` 3/3; load variation `none` 2, `unexplained` 1; floor sensors 5/5 (all 0.60 m or
+more).
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
