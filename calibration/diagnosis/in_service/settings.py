@@ -64,7 +64,8 @@ class DiagnosisSettings:
         if not self.asymmetry >= 1:
             raise ValueError(f"DiagnosisSettings.asymmetry must be at least 1 (a ratio), got {self.asymmetry}")
         if self.under_floor_gain is not None and not 0 < self.under_floor_gain < 1:
-            raise ValueError(f"DiagnosisSettings.under_floor_gain must be in (0, 1) or None, got {self.under_floor_gain}")
+            raise ValueError("DiagnosisSettings.under_floor_gain must be in (0, 1) or None, "
+                             f"got {self.under_floor_gain}")
         if not self.prior_spread > 1:
             raise ValueError(f"DiagnosisSettings.prior_spread must be above 1 (a factor), got {self.prior_spread}")
         for name in ("fit_leading", "starts"):
