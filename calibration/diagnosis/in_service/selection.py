@@ -169,7 +169,7 @@ def _under_floor(s, tried: list[tuple[Extension, Hypothesis]]) -> tuple[Extensio
     def candidate(e: Extension, h: Hypothesis) -> bool:
         own_bounds = {r.name for r in e.params} & set(h.parameters_at_bounds)
         return not h.on_model_error and h.penalised_gain >= s.under_floor_gain and not h.losses \
-            and not own_bounds and not e.is_property(_own(e, h)) and not _stands_in(e, h)
+            and not own_bounds and not e.is_property(_own(e, h))
     found = [(e, h) for e, h in tried if candidate(e, h)]
     return max(found, key=lambda eh: eh[1].penalised_gain, default=None)
 
