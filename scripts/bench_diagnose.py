@@ -138,6 +138,10 @@ wrong name; clean `none` 6, `unexplained` 4 (the rear floor's residual 1.1-3.5 %
 alarm; cog_offset 10/10 (`high` 9, `moderate` 1); friction `none` 5/5; rigid equipment
 `none` 3/3; load variation `none` 2, `unexplained` 1; floor sensors 5/5 (all 0.60 m or
 more).
+Forecast for airspring_reservoir j = 0-29 re-run under the rule (written before the run; not
+fresh: 8123 among them informed the rule): the six `none` answers of ae8cee7 (8105, 8107,
+8112, 8115, 8116, 8123) named `low` on 3-6 of them, the three `unexplained` unchanged, the
+21 named as before: 24-27 of 30, no wrong name.
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
