@@ -258,7 +258,7 @@ def _explains(data: DiagnosisData, h: Hypothesis, before: ResponseFit, channels:
     c = best_reduction(red, np.array([not within_accuracy(channels[n], s) for n in names]))
     if c is None:
         return False
-    if heldout_losses(names, errors, after, c, s.max_loss):
+    if heldout_losses(names, errors, after, s.max_loss):
         return False
     coherence = h.residual[names[c]]["after"]["input_coherence"]
     return systematic_left(float(red[c]), h.residual[names[c]]["after"], channels[names[c]]) \
