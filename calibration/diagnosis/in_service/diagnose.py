@@ -20,10 +20,11 @@ the cause, the extended model and the gain.
    wrong: held-out NRP x input coherence at or above ``systematic_floor``), it makes no
    held-out channel worse by more than ``max_loss`` of its error (unless that worsening is
    under ``max_loss`` of what the hypothesis removes over the channels it improves, in the
-   same units) and, for a response extension, it explains the systematic residual on the channel it gains on (held-out error times the residual's
-   coherence with the rail input falls to ``max_systematic_left`` of the baseline's or
-   below: an extension that only rescales what it cannot model, e.g. a gyro gain against a
-   bogie resonance, leaves the residual as coherent as before). The rail side (track), the
+   same units) and, for a response extension, it explains the systematic residual on the
+   channel it gains on (held-out error times the residual's coherence with the rail input
+   falls to ``max_systematic_left`` of the baseline's or below: an extension that only
+   rescales what it cannot model, e.g. a gyro gain against a bogie resonance, leaves the
+   residual as coherent as before). The rail side (track), the
    wheels and the vehicle are decided apart; on the vehicle, response extensions are
    added one after the other while one passes on top of those found, or found in pairs
    when two effects hide each other. Each finding carries its held-out gain's interval
