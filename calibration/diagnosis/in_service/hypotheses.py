@@ -173,7 +173,7 @@ def fit_hypothesis(data: DiagnosisData, ext: Extension, base_fit: ResponseFit, e
         # a fit with friction folds its damping at one amplitude into c_s and c_p: start from the viscous part
         fit = fit_response(stats, data.layout, data.keys(data.train), viscous(prev.parameters, prev.values),
                            data.bounds,
-                           ext_params=ext.params, make=ext.make, starts=s.starts,
+                           ext_params=ext.params, make=ext.make, starts=s.starts, screen=s.screen,
                            known=None if added_to is None else prev.values, per_run=ext.per_run,
                            heldout_keys=data.keys(data.test))
         before = response_errors(data, prev, ev.masks)

@@ -388,7 +388,7 @@ def _cross_fitted_loads(stats: Statistics, lay: Layout, model: ResponseFit, keys
 
 
 def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters, bounds: dict, *,
-                 ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6,
+                 ext_params: tuple[ParamRange, ...] = (), make=None, starts: int = 6, screen: int = 0,
                  known: Mapping[str, float] | None = None, rng: np.random.Generator | None = None,
                  per_run: bool = False, heldout_keys=(), amplitude: AmplitudeClasses | None = None,
                  relinearise: bool = False) -> ResponseFit:
@@ -397,6 +397,9 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
     statistics. Without an extension: one fit from ``base``. With one: a
     global stage (``starts`` starts of the extension parameters, a Latin hypercube over
     their box, baseline held at ``base``), then the best refined jointly with the baseline.
+    ``screen``: the hypercube has this many points (at least ``starts``), their costs are
+    evaluated and the ``starts`` cheapest are the starts: a resonance's frequency has a
+    basin about as wide as its bandwidth, narrower than a few starts' spacing over the box.
     ``known``: extension parameters already fitted (an extension found before this one),
     which start at these values and take no part in the global stage.
     ``per_run``: every run carries a load of its own (:func:`loaded`), fitted with the rest
@@ -416,12 +419,15 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
     x_base = pr.x_of({**base.as_dict(), **mid, **known})
     searched = np.array([nb <= i < nb + pr.n_ext and r.name not in known for i, r in enumerate(pr.ranges)])
     if searched.any():
-        k = int(searched.sum())
-        u = (rng.permuted(np.tile(np.arange(starts), (k, 1)), axis=1).T + rng.uniform(size=(starts, k))) / starts
+        k, m = int(searched.sum()), max(screen, starts)
+        u = (rng.permuted(np.tile(np.arange(m), (k, 1)), axis=1).T + rng.uniform(size=(m, k))) / m
+        x0s = np.tile(x_base, (m, 1))
+        x0s[:, searched] = pr.lo[searched] + u * (pr.hi[searched] - pr.lo[searched])
+        if m > starts:
+            held = np.zeros(n, bool)
+            x0s = x0s[np.argsort([pr.cost(x0, held)[0] for x0 in x0s], kind="stable")[:starts]]
         best = None
-        for row in u:
-            x0 = x_base.copy()
-            x0[searched] = pr.lo[searched] + row * (pr.hi[searched] - pr.lo[searched])
+        for x0 in x0s:
             x, cost = pr.solve(x0, searched)
             if best is None or cost < best[1]:
                 best = (x, cost)

@@ -42,6 +42,7 @@ class DiagnosisSettings:
     asymmetry: float = 2.0  # line power ratio between the two axle boxes of a wheel line
     fit_leading: int = 10  # hypotheses fitted, best evidence first
     starts: int = 6  # global-stage starts of a response extension's fit
+    screen: int = 64  # global-stage candidates whose cost is evaluated; the ``starts`` cheapest are refined
     signal_factor: float = 4.0  # a signal band stands this far above the channel's spectral floor
     input_noise_share: float = 0.3  # bands where input noise makes more of the residual are not evidence
     prior_spread: float = 3.0  # search factor around nominal for parameters without priors
@@ -68,6 +69,6 @@ class DiagnosisSettings:
                              f"got {self.under_floor_gain}")
         if not self.prior_spread > 1:
             raise ValueError(f"DiagnosisSettings.prior_spread must be above 1 (a factor), got {self.prior_spread}")
-        for name in ("fit_leading", "starts"):
+        for name in ("fit_leading", "starts", "screen"):
             if not getattr(self, name) >= 1:
                 raise ValueError(f"DiagnosisSettings.{name} must be at least 1, got {getattr(self, name)}")
