@@ -167,8 +167,9 @@ runs): floor_sensor_offset j = 0-24 the same 22/25 (the three smallest `none`), 
 cog_offset j = 0-19 20/20, no reservoir named beside it; suspension_friction j = 0-9 `none` on
 9-10, no catalogue name `high`.
 Measured (d9cc283, the loss rule): cog_offset j = 0-19 **20/20** (84-100 %), as forecast, no
-other cause named beside it (17 `high`, 3 `moderate`). Floor sensors: see below. Friction
-not run on it (stopped for the screened global stage below).
+other cause named beside it (17 `high`, 3 `moderate`); floor_sensor_offset j = 0-24 **22/25**
+(70-96 %), as forecast, the three smallest (0.31-0.40 m) `none`, no wrong name. Friction not
+run on it (stopped for the screened global stage below).
 Forecast for the screened global stage (``DiagnosisSettings.screen`` = 64: the cost at 64
 points of the hypercube is evaluated and the 6 cheapest are the starts; written 2026-11-29
 before any bench run on it). Found by re-diagnosing clean 8321 (`unexplained`, its rear floor
