@@ -425,7 +425,11 @@ def fit_response(stats: Statistics, lay: Layout, train_keys, base: CarParameters
         x0s[:, searched] = pr.lo[searched] + u * (pr.hi[searched] - pr.lo[searched])
         if m > starts:
             held = np.zeros(n, bool)
-            x0s = x0s[np.argsort([pr.cost(x0, held)[0] for x0 in x0s], kind="stable")[:starts]]
+            costs = np.array([pr.cost(x0, held)[0] for x0 in x0s])
+            # costs equal but for round-off (points where the extension does nothing) keep the
+            # hypercube's order, so the starts do not depend on the CPU
+            costs = np.round(costs / max(costs.min(), 1e-300), 9)
+            x0s = x0s[np.argsort(costs, kind="stable")[:starts]]
         best = None
         for x0 in x0s:
             x, cost = pr.solve(x0, searched)
