@@ -145,8 +145,12 @@ def validate(campaign, calibration: dict, args) -> str:
     write_result(args.out, out, "validation")
     summary = "; ".join(f"{k}: NRMSE {v['nrmse']:.3f}, PSD {v['psd_log_error_db']:.2f} dB"
                         for k, v in out["channels"].items())
+    comfort = ", ".join(f"{pos} {c['model']['n_mv_z']:.2f}" + ("" if c["measured"] is None else
+                                                                  f" (measured {c['measured']['n_mv_z']:.2f})")
+                        for pos, c in out["ride_comfort"].items())
+    comfort = f"; ride comfort, the vertical part of N_MV over the recording: {comfort}" if comfort else ""
     return (f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-"
-            f"{result.band_m[1]:g} m): {summary}; wrote {names(args.out, png)}")
+            f"{result.band_m[1]:g} m): {summary}{comfort}; wrote {names(args.out, png)}")
 
 
 def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tuple[dict, str]:

@@ -27,6 +27,9 @@ The comparison:
 * ``psd_log_error_db``: mean over the band of |10 log10(PSD_sim / PSD_meas)|, Welch
   spectra over spatial frequency;
 * ``residual_rms``: rms(simulated - measured), to set beside the sensor's noise.
+
+The same simulation gives the floor's vertical acceleration, from which the ride comfort
+over the recording is reckoned (:mod:`.comfort`).
 """
 from __future__ import annotations
 
@@ -44,6 +47,7 @@ from ..models.car2d import CarExtras, Output, build_car, state_space, wheelset_p
 from ..models.parameters import CarParameters
 from ..models.simulate import ModalSimulator
 from ..signals.peaks import parabolic_shift
+from .comfort import comfort_summary, floor_comfort
 
 BANDS_M = {"D1": (3.0, 25.0), "D2": (25.0, 70.0)}
 STEP_M = 0.25  # [m] distance grid of the comparison
@@ -69,6 +73,7 @@ class RunComparison:
     distance: np.ndarray = field(repr=False)
     measured: dict = field(repr=False)
     simulated: dict = field(repr=False)
+    comfort: tuple = ()  # FloorComfort per floor position (:mod:`.comfort`); () when the stretch is too short
 
 
 @dataclass(frozen=True)
@@ -103,7 +108,9 @@ class ValidationResult:
                           "offset_m": r.offset, "offset_at_limit": r.offset_at_limit,
                           "channels": {c.channel: {"nrmse": c.nrmse, "psd_log_error_db": c.psd_log_error_db,
                                                    "residual_rms": c.residual_rms, "measured_rms": c.measured_rms}
-                                       for c in r.channels}} for r in self.runs]}
+                                       for c in r.channels},
+                          "ride_comfort": {c.position: c.to_json() for c in r.comfort}} for r in self.runs],
+                "ride_comfort": comfort_summary(r.comfort for r in self.runs)}
 
 
 def _bandpass_distance(x: np.ndarray, band_m: tuple[float, float]) -> np.ndarray:
@@ -172,8 +179,14 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
     if not outputs:
         raise CampaignError("no bogie-1 vertical accelerometer or pitch gyro to compare with", path=campaign.root /
                             "campaign.toml", key="sensors")
-    ss = state_space(build_car(p, extras=extras), outputs)
-    gains = np.array([gyro_gain if o.kind == "pitch_rate" else 1.0 for o in outputs])
+    floor = [Output(s.name, "acceleration", "carbody", s.position[0]) for s in meta.sensors
+             if s.body in ("carbody", "floor") and s.quantity == "acceleration" and s.direction == "z"]
+    if not floor:  # EN 12299's floor positions: above the bogie centres and at the car's centre
+        floor = [Output(f"floor_{w}", "acceleration", "carbody", x) for w, x in
+                 (("front", p.L_v), ("centre", 0.0), ("rear", -p.L_v))]
+    ss = state_space(build_car(p, extras=extras), outputs + floor)
+    gains = np.array([gyro_gain if o.kind == "pitch_rate" else 1.0 for o in outputs + floor])
+    nb = len(outputs)
     runs, skipped = [], []
     for run in campaign.iter_runs():
         d = distance_axis(run.distance, run.speed, run.time)
@@ -200,8 +213,10 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
                 for j in range(4):
                     w[:, j] = np.interp(s + offset + xw[j], track.distance, track.level)
                     w[:, 4 + j] = v * np.interp(s + offset + xw[j], track.distance, slope)
-                y = ModalSimulator(ss, dt, x0="static").step_chunk(w) * gains
-                return [np.interp(grid, s, y[:, k]) for k in range(len(outputs))]
+                return ModalSimulator(ss, dt, x0="static").step_chunk(w) * gains
+
+            def on_grid(y):
+                return [np.interp(grid, s, y[:, k]) for k in range(nb)]
 
             meas = {}
             for o in outputs:
@@ -210,12 +225,14 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
                     meas[o.name] = _bandpass_distance(m - m.mean(), band)
             if not meas:
                 continue
-            offset = _best_offset(meas, dict(zip([o.name for o in outputs], simulate_at(0.0))), max_offset)
+            offset = _best_offset(meas, dict(zip([o.name for o in outputs], on_grid(simulate_at(0.0)))), max_offset)
             at_limit = abs(offset) >= max_offset - STEP_M
-            sim_all = dict(zip([o.name for o in outputs], simulate_at(offset)))
+            y = simulate_at(offset)
+            sim_all = dict(zip([o.name for o in outputs], on_grid(y)))
             keep = slice(int(trim / STEP_M), grid.size - int(trim / STEP_M))
             if keep.stop - keep.start < int(min_length / STEP_M):
                 continue
+            comfort = _floor_comfort(run, floor, y[:, nb:], (i0, i1), s, grid, keep, band, dt)
             grid = grid[keep]
             meas = {name: m[keep] for name, m in meas.items()}
             sim = {name: sim_all[name][keep] - sim_all[name][keep].mean() for name in meas}
@@ -226,7 +243,7 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
             comps = [_compare(name, meas[name], sim[name], band) for name in meas]
             if comps:
                 runs.append(RunComparison(run.run_id, (float(s[0]), float(s[-1])), float(np.mean(v)), offset,
-                                          at_limit, tuple(comps), grid, meas, sim))
+                                          at_limit, tuple(comps), grid, meas, sim, comfort))
                 if progress:
                     progress(f"validate: {run.run_id} over {s[-1] - s[0]:.0f} m at {np.mean(v):.1f} m/s, "
                              f"synchronised by {offset:+.2f} m")
@@ -235,3 +252,26 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
                             f"{track.path.name} with every wheelset ({min_length:g} m compared plus {trim:g} m left "
                             "out at each end) and usable sensors", path=track.path)
     return ValidationResult(track.name, band, tuple(runs), tuple(skipped))
+
+
+def _floor_comfort(run, floor: list, y: np.ndarray, span: tuple, s: np.ndarray, grid: np.ndarray, keep: slice,
+                   band: tuple, dt: float) -> tuple:
+    """Ride comfort (:mod:`.comfort`) at the floor positions ``floor`` over a run's stretch:
+    the simulated accelerations ``y`` (time, position) and the measured ones, where a floor
+    accelerometer is and valid, filtered alike to the recording's wavelengths on distance and
+    taken back to the samples whose distance lies in the compared part ``grid[keep]``."""
+    i0, i1 = span
+    inside = (s >= grid[keep][0]) & (s <= grid[keep][-1])
+
+    def in_band(a):
+        return np.interp(s, grid, _bandpass_distance(np.interp(grid, s, a - a.mean()), band))[inside]
+
+    out = []
+    for k, o in enumerate(floor):
+        measured = None
+        if o.name in run.channels and run.valid[o.name][i0:i1].all():
+            measured = in_band(run.channels[o.name][i0:i1])
+        c = floor_comfort(o.name, o.x, 1.0 / dt, in_band(y[:, k]), measured)
+        if c is not None:
+            out.append(c)
+    return tuple(out)
