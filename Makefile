@@ -9,6 +9,7 @@ STAMP  := $(VENV)/.installed
 .PHONY: demo test check venv clean bench fmus
 
 $(STAMP): pyproject.toml
+	bash scripts/install_system_packages.sh
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
