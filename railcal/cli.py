@@ -218,6 +218,15 @@ def cmd_crosscheck(args) -> int:
     return EXIT_OK
 
 
+# ------------------------------------------------------------------------------- report
+def cmd_report(args) -> int:
+    from railcal.report.build import write_report
+
+    html, pdf, steps = write_report(args.folder, pdf=args.pdf)
+    print(f"report of {', '.join(steps)}: wrote {names(html, pdf)}")
+    return EXIT_OK
+
+
 # ------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
     from railcal.demo import run_demo
@@ -370,6 +379,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-fmu", action="store_true", help="leave the FMU out (no C compiler)")
     s.add_argument("--out", required=True, help="JSON result to write (car2d: the plot goes beside it, .png)")
     _finish(s, cmd_crosscheck)
+
+    s = sub.add_parser("report", help="the engineering sign-off report of a results folder (HTML, and PDF)")
+    s.add_argument("folder", help="folder holding the steps' JSON results (identification.json, calibration.json, "
+                   "validation.json, diagnosis.json, crosscheck.json) and their figures")
+    s.add_argument("--pdf", action="store_true", help="also write report.pdf")
+    _finish(s, cmd_report)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")
     s.add_argument("--out", default="demo_output", help="folder to write the demo's results into")

@@ -1,0 +1,96 @@
+"""The sign-off report of a results folder: each step's JSON result read back, laid out by a
+template into one self-contained HTML page (figures embedded), and its PDF.
+
+The folder holds what the commands wrote, under the names ``railcal run`` gives them
+(:data:`RESULTS`); a step that is absent is reported as not run. Every number in the
+report's tables is taken from those files, never recomputed: each numeric cell carries the
+JSON path it came from (``data-json``), so a test can hold the report to its results.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import jinja2
+
+from calibration.data.errors import InputError
+from calibration.data.outputs import check_outputs, read_result, write_atomic
+
+from ..provenance import provenance
+from .render import data_uri, html_to_pdf, pdf_available
+
+#: step -> (file name in the results folder, its result kind)
+RESULTS = {"identification": ("identification.json", "identification"),
+           "calibration": ("calibration.json", "calibration"),
+           "validation": ("validation.json", "validation"),
+           "diagnosis": ("diagnosis.json", "diagnosis"),
+           "crosscheck": ("crosscheck.json", "crosscheck")}
+
+
+def number(x, digits: int = 4) -> str:
+    """A number as the report shows it: ``digits`` significant figures; '-' for none."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return str(x)
+    return f"{x:.{digits}g}"
+
+
+def load_results(folder) -> dict:
+    """{step: its JSON result} of the steps whose file is in ``folder``."""
+    folder = Path(folder)
+    return {step: read_result(folder / name, (kind,)) for step, (name, kind) in RESULTS.items()
+            if (folder / name).is_file()}
+
+
+def _figures(folder: Path, results: dict) -> dict:
+    """{step: [data URI, ...]} of the figures each result names that exist."""
+    out = {}
+    for step, r in results.items():
+        paths = [r[k] for k in ("plot", "plot_spectra") if isinstance(r.get(k), str)] + list(r.get("plots") or [])
+        found = []
+        for p in paths:
+            p = Path(p)
+            for candidate in (p, folder / p.name):
+                if candidate.is_file():
+                    found.append(data_uri(candidate))
+                    break
+        out[step] = found
+    return out
+
+
+def build_html(folder, *, title: str | None = None) -> str:
+    """The report of ``folder``'s results as one self-contained HTML page."""
+    folder = Path(folder)
+    results = load_results(folder)
+    if not results:
+        raise FileNotFoundError(f"{folder}: no step result ({', '.join(n for n, _ in RESULTS.values())}) to report")
+    env = jinja2.Environment(loader=jinja2.PackageLoader("railcal.report", "templates"),
+                             autoescape=jinja2.select_autoescape(["html", "j2"]), undefined=jinja2.StrictUndefined)
+    env.filters["n"] = number
+    campaign = next((r["campaign"] for r in results.values() if isinstance(r.get("campaign"), str)), None)
+    inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
+    return env.get_template("report.html.j2").render(
+        title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
+        figures=_figures(folder, results), provenance=provenance(inputs, root=folder), steps=list(RESULTS))
+
+
+def write_report(folder, *, pdf: bool = False) -> tuple[Path, Path | None, tuple]:
+    """``folder``/report.html (and report.pdf with ``pdf``) from the results there: (the HTML,
+    the PDF or None, the steps reported). Refuses, writing nothing, a folder with no result
+    or, with ``pdf``, a machine that cannot make one (:class:`InputError`)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("not a results folder (no such directory)", path=folder)
+    html_path, pdf_path = folder / "report.html", (folder / "report.pdf" if pdf else None)
+    check_outputs([html_path, pdf_path], inputs=[folder / name for name, _ in RESULTS.values()])
+    if pdf and (why := pdf_available()) is not None:
+        raise InputError(f"cannot make a PDF here: {why}", key="--pdf")
+    try:
+        html = build_html(folder)
+    except FileNotFoundError as e:
+        raise InputError(str(e), path=folder) from None
+    write_atomic(html_path, lambda f: f.write(html.encode("utf-8")))
+    if pdf:
+        html_to_pdf(html, pdf_path)
+    return html_path, pdf_path, tuple(load_results(folder))
