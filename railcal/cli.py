@@ -218,6 +218,22 @@ def cmd_crosscheck(args) -> int:
     return EXIT_OK
 
 
+# ------------------------------------------------------------------------------- run
+def cmd_run(args) -> int:
+    from railcal.run import run_campaign
+
+    campaign = campaign_of(args)
+    model = args.model or ("box" if campaign.meta.kind == "stationary_excitation" else "car2d")
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    record = run_campaign(campaign, Path(args.out), model=model, pdf=not args.no_pdf, say=say)
+    done = [s["name"] for s in record["steps"] if s["status"] == "done"]
+    failed = [f"{s['name']} ({s['reason']})" for s in record["steps"] if s["status"] != "done"]
+    print(f"run of {campaign.root} with {model}: {len(done)} steps done"
+          f"{'; not done: ' + '; '.join(failed) if failed else ''}; wrote {args.out}")
+    needed = {"identify", "calibrate"}
+    return EXIT_INPUT if any(s["status"] != "done" and s["name"] in needed for s in record["steps"]) else EXIT_OK
+
+
 # ------------------------------------------------------------------------------- report
 def cmd_report(args) -> int:
     from railcal.report.build import write_report
@@ -379,6 +395,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-fmu", action="store_true", help="leave the FMU out (no C compiler)")
     s.add_argument("--out", required=True, help="JSON result to write (car2d: the plot goes beside it, .png)")
     _finish(s, cmd_crosscheck)
+
+    s = sub.add_parser("run", help="the whole job on a campaign: identify, calibrate, validate, diagnose, FMUs, "
+                       "cross-checks and the report; resumable")
+    s.add_argument("campaign", help="campaign folder")
+    s.add_argument("--out", required=True, help="folder to write every step's results, the FMUs and the report into")
+    s.add_argument("--model", choices=tuple(MODELS), default=None,
+                   help="model (default: car2d in service, box for an excitation test)")
+    s.add_argument("--no-pdf", action="store_true", help="the HTML report only")
+    _finish(s, cmd_run, reads_campaign=True)
 
     s = sub.add_parser("report", help="the engineering sign-off report of a results folder (HTML, and PDF)")
     s.add_argument("folder", help="folder holding the steps' JSON results (identification.json, calibration.json, "

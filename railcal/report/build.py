@@ -24,7 +24,8 @@ RESULTS = {"identification": ("identification.json", "identification"),
            "calibration": ("calibration.json", "calibration"),
            "validation": ("validation.json", "validation"),
            "diagnosis": ("diagnosis.json", "diagnosis"),
-           "crosscheck": ("crosscheck.json", "crosscheck")}
+           "crosscheck": ("crosscheck.json", "crosscheck"),
+           "crosscheck_extended": ("crosscheck_extended.json", "crosscheck")}
 
 
 def number(x, digits: int = 4) -> str:

@@ -1,0 +1,170 @@
+"""``railcal run``: the whole job on a user's campaign, into one folder.
+
+Each step is the railcal command of the same name, writing its JSON and figures as that
+command does; a later step reads the earlier ones' files (``calibrate`` takes the
+identification made before, ``diagnose`` the calibration, ...) instead of computing them
+again. A step is skipped when its command line and the content of its inputs are those of
+its last completed run (``run.json`` keeps each step's key, a SHA-256 of both) and its
+outputs are still there, so a run stopped half-way, or repeated, does only what is new.
+
+Identification and calibration are needed by everything after them: their failure stops
+the run. Any other step that cannot be done with this campaign (no track recording to
+validate over, no C compiler for an FMU) is recorded with its reason, and the run goes on;
+the report says which steps ran. Every step's summary line goes to ``run.log``.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import statistics
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from calibration.data.errors import InputError
+from calibration.data.outputs import check_outputs, write_atomic, write_json_atomic
+
+from .provenance import file_sha256, provenance
+
+RUN_FORMAT = "railcal-run/1"
+
+
+@dataclass(frozen=True)
+class Step:
+    """One command of the run: its railcal arguments (without ``--quiet``), the files (or
+    the campaign folder) whose content decides its result, and the files it writes."""
+
+    name: str
+    argv: tuple
+    inputs: tuple
+    outputs: tuple
+    needed: bool = False  # its failure stops the run
+
+
+def _content_key(step: Step, fingerprint) -> str:
+    """SHA-256 of the step's command line and its inputs' content."""
+    h = hashlib.sha256(json.dumps(list(step.argv)).encode())
+    for path in step.inputs:
+        path = Path(path)
+        h.update((fingerprint(path) if path.is_dir() else file_sha256(path) if path.is_file() else "absent").encode())
+    return h.hexdigest()
+
+
+def _speed(identification: Path, default: float = 40.0) -> float:
+    """[m/s] the median of the runs' mean speeds in an identification, for the cross-check."""
+    try:
+        runs = json.loads(identification.read_text())["data"]["runs"]
+        return float(statistics.median(0.5 * (r["speed_m_s"][0] + r["speed_m_s"][1]) for r in runs))
+    except (OSError, ValueError, KeyError, TypeError, IndexError, statistics.StatisticsError):
+        return default
+
+
+def plan(campaign, out: Path, model: str) -> list[Step]:
+    """The steps of a run of ``campaign`` (an opened campaign) into ``out`` with ``model``."""
+    root = str(campaign.root)
+    f = {name: out / f"{name}.json" for name in ("identification", "calibration", "validation", "diagnosis",
+                                                 "crosscheck", "crosscheck_extended")}
+    track = [str(sorted(campaign.track_paths)[0])] if campaign.track_paths else []
+    calibrate = ["calibrate", root, "--identification", str(f["identification"]), "--model", model, "--refine"]
+    if model == "box":
+        calibrate += ["--method", "pso"]
+    fmu = {"baseline": out / "fmu" / "baseline.fmu", "extended": out / "fmu" / "extended.fmu"}
+    steps = [Step("identify", ("identify", root, "--out", str(f["identification"])), (campaign.root,),
+                  (f["identification"],), needed=True),
+             Step("calibrate", tuple(calibrate + ["--out", str(f["calibration"])]),
+                  (campaign.root, f["identification"]), (f["calibration"],), needed=True),
+             Step("validate", ("validate", root, "--calibration", str(f["calibration"]), "--out", str(f["validation"])),
+                  (campaign.root, f["calibration"]), (f["validation"],)),
+             Step("diagnose", ("diagnose", root, "--calibration", str(f["calibration"]), "--out", str(f["diagnosis"])),
+                  (campaign.root, f["calibration"]), (f["diagnosis"],))]
+    for which, source in (("baseline", f["calibration"]), ("extended", f["diagnosis"])):
+        extra = ["--track", *track] if track and model == "car2d" else []
+        steps.append(Step(f"export-fmu {which}", ("export-fmu", "--calibration", str(source), *extra,
+                                                  "--out", str(fmu[which])),
+                          (source, *map(Path, track)), (fmu[which],)))
+    speed = f"{_speed(f['identification']):.6g}"
+    for which, source, result in (("baseline", f["calibration"], f["crosscheck"]),
+                                  ("extended", f["diagnosis"], f["crosscheck_extended"])):
+        extra = ["--track", *track, "--speed", speed] if track and model == "car2d" else []
+        steps.append(Step(f"crosscheck {which}", ("crosscheck", "--calibration", str(source), *extra,
+                                                  "--out", str(result)),
+                          (source, *map(Path, track)), (result,)))
+    return steps
+
+
+def _invoke(argv) -> tuple[int, str, str]:
+    """Run one railcal command in this process: (exit code, its stdout, its stderr)."""
+    from .cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([*argv, "--quiet"])
+    return code, out.getvalue().strip(), err.getvalue().strip()
+
+
+def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print) -> dict:
+    """Run every step of :func:`plan` into ``out`` (created), skipping those unchanged, then
+    the report; return the run record (also written to ``out``/run.json)."""
+    from .report.build import write_report
+    from .report.render import pdf_available
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a folder; --out takes the folder to write the run into", path=out,
+                         key="--out")
+    check_outputs([out / "run.json"], inputs=[campaign.root])  # never inside the campaign it reads
+    out.mkdir(parents=True, exist_ok=True)
+    record_path, log_path = out / "run.json", out / "run.log"
+    previous = {}
+    if record_path.is_file():
+        try:
+            previous = {s["name"]: s for s in json.loads(record_path.read_text()).get("steps", [])}
+        except (ValueError, AttributeError):
+            previous = {}
+    fingerprints: dict = {}
+
+    def fingerprint(path: Path) -> str:
+        if path not in fingerprints:
+            fingerprints[path] = campaign.fingerprint() if path == campaign.root else file_sha256(path)
+        return fingerprints[path]
+
+    steps, log = [], []
+    planned = plan(campaign, out, model)
+    for i in range(1, len(planned) + 1):
+        step = plan(campaign, out, model)[i - 1]  # planned again: a step's options may read an earlier result
+        key = _content_key(step, fingerprint)
+        last = previous.get(step.name, {})
+        if last.get("key") == key and last.get("status") == "done" and all(Path(o).exists() for o in step.outputs):
+            steps.append({**last, "status": "done", "reused": True})
+            say(f"[{i}/{len(planned) + 1}] {step.name}: unchanged since its last run, kept")
+            continue
+        say(f"[{i}/{len(planned) + 1}] {step.name} ...")
+        (out / "fmu").mkdir(exist_ok=True)
+        t0 = time.perf_counter()
+        code, text, err = _invoke(step.argv)
+        seconds = time.perf_counter() - t0
+        entry = {"name": step.name, "command": ["railcal", *step.argv], "key": key, "seconds": round(seconds, 1),
+                 "status": "done" if code == 0 else "failed", "summary": text or None,
+                 "reason": None if code == 0 else (err.splitlines()[-1] if err else f"exit {code}")}
+        steps.append(entry)
+        log.append(f"{step.name} ({seconds:.1f} s): {text or entry['reason']}")
+        say(f"    {text or entry['reason']}")
+        if code != 0 and step.needed:
+            break
+    why_no_pdf = pdf_available() if pdf else "not asked for"
+    try:
+        html, made_pdf, reported = write_report(out, pdf=why_no_pdf is None)
+        steps.append({"name": "report", "status": "done", "summary": f"{html}" + (f", {made_pdf}" if made_pdf else ""),
+                      "reason": None if made_pdf else f"no PDF: {why_no_pdf}"})
+        say(f"[{len(planned) + 1}/{len(planned) + 1}] report: {html}" + (f" and {made_pdf}" if made_pdf else
+                                                                            f" (no PDF: {why_no_pdf})"))
+    except InputError as e:
+        steps.append({"name": "report", "status": "failed", "reason": str(e)})
+    record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign.fingerprint(),
+              "model": model, "steps": steps, "provenance": provenance([], argv=None)}
+    write_json_atomic(record_path, record)
+    previous_log = log_path.read_text() if log_path.is_file() else ""
+    write_atomic(log_path, lambda fh: fh.write((previous_log + "".join(f"{line}\n" for line in log)).encode()))
+    return record
