@@ -28,7 +28,7 @@ def _record(out):
     return {s["name"]: s for s in json.loads((out / "run.json").read_text())["steps"]}
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=60)
 def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, capsys):
     out = tmp_path / "results"
     assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
@@ -51,7 +51,7 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     assert again["validate"]["status"] == "done" and not again["validate"].get("reused")
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=30)
 def test_a_campaign_without_track_recording_runs_on_and_says_what_it_could_not_do(campaign, tmp_path, capsys):
     bare = tmp_path / "bare"
     shutil.copytree(campaign, bare, ignore=shutil.ignore_patterns("track"))
