@@ -225,7 +225,8 @@ def cmd_run(args) -> int:
     campaign = campaign_of(args)
     model = args.model or ("box" if campaign.meta.kind == "stationary_excitation" else "car2d")
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    record = run_campaign(campaign, Path(args.out), model=model, pdf=not args.no_pdf, say=say)
+    record = run_campaign(campaign, Path(args.out), model=model, pdf=not args.no_pdf, say=say,
+                          criteria_path=args.criteria)
     done = [s["name"] for s in record["steps"] if s["status"] == "done"]
     failed = [f"{s['name']} ({s['reason']})" for s in record["steps"] if s["status"] != "done"]
     print(f"run of {campaign.root} with {model}: {len(done)} steps done"
@@ -238,7 +239,7 @@ def cmd_run(args) -> int:
 def cmd_report(args) -> int:
     from railcal.report.build import write_report
 
-    html, pdf, steps = write_report(args.folder, pdf=args.pdf)
+    html, pdf, steps = write_report(args.folder, pdf=args.pdf, criteria_path=args.criteria)
     print(f"report of {', '.join(steps)}: wrote {names(html, pdf)}")
     return EXIT_OK
 
@@ -403,12 +404,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--model", choices=tuple(MODELS), default=None,
                    help="model (default: car2d in service, box for an excitation test)")
     s.add_argument("--no-pdf", action="store_true", help="the HTML report only")
+    s.add_argument("--criteria", default=None, metavar="C.toml",
+                   help="acceptance criteria for the report (default: railcal's, listed in docs/cli.md)")
     _finish(s, cmd_run, reads_campaign=True)
 
     s = sub.add_parser("report", help="the engineering sign-off report of a results folder (HTML, and PDF)")
     s.add_argument("folder", help="folder holding the steps' JSON results (identification.json, calibration.json, "
                    "validation.json, diagnosis.json, crosscheck.json) and their figures")
     s.add_argument("--pdf", action="store_true", help="also write report.pdf")
+    s.add_argument("--criteria", default=None, metavar="C.toml",
+                   help="acceptance criteria ([[criterion]] tables; default: railcal's, listed in docs/cli.md)")
     _finish(s, cmd_report)
 
     s = sub.add_parser("demo", help="the whole job on the built-in example")

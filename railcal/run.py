@@ -104,7 +104,7 @@ def _invoke(argv) -> tuple[int, str, str]:
     return code, out.getvalue().strip(), err.getvalue().strip()
 
 
-def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print) -> dict:
+def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, criteria_path=None) -> dict:
     """Run every step of :func:`plan` into ``out`` (created), skipping those unchanged, then
     the report; return the run record (also written to ``out``/run.json)."""
     from .report.build import write_report
@@ -114,7 +114,11 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print) -> d
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder; --out takes the folder to write the run into", path=out,
                          key="--out")
-    check_outputs([out / "run.json"], inputs=[campaign.root])  # never inside the campaign it reads
+    check_outputs([out / "run.json"], inputs=[campaign.root, criteria_path])  # never inside the campaign it reads
+    if criteria_path is not None:  # a malformed file is refused before any work
+        from .report.criteria import load_criteria
+
+        load_criteria(criteria_path)
     out.mkdir(parents=True, exist_ok=True)
     record_path, log_path = out / "run.json", out / "run.log"
     previous = {}
@@ -155,7 +159,7 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print) -> d
             break
     why_no_pdf = pdf_available() if pdf else "not asked for"
     try:
-        html, made_pdf, reported = write_report(out, pdf=why_no_pdf is None)
+        html, made_pdf, reported = write_report(out, pdf=why_no_pdf is None, criteria_path=criteria_path)
         steps.append({"name": "report", "status": "done", "summary": f"{html}" + (f", {made_pdf}" if made_pdf else ""),
                       "reason": None if made_pdf else f"no PDF: {why_no_pdf}"})
         say(f"[{len(planned) + 1}/{len(planned) + 1}] report: {html}" + (f" and {made_pdf}" if made_pdf else

@@ -104,3 +104,20 @@ def test_report_refuses_a_folder_without_results_and_writes_nothing(tmp_path, ca
     assert main(["report", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "diagnosis.json" in err and not (tmp_path / "report.html").exists()
+
+
+def test_the_verdict_follows_the_criteria_given(results, tmp_path, capsys):
+    strict = tmp_path / "strict.toml"
+    strict.write_text('[[criterion]]\nname = "a perfect fit"\nresult = "calibration"\nvalue = "max_error_pct"\n'
+                      'at_most = -1.0\n')
+    assert main(["report", str(results), "--criteria", str(strict), "--quiet"]) == 0
+    html = (results / "report.html").read_text()
+    assert "Not accepted: 1 of 1 criteria failed (a perfect fit)." in html
+    assert main(["report", str(results), "--quiet"]) == 0
+    assert "(railcal's default criteria)" in (results / "report.html").read_text()
+    capsys.readouterr()
+    strict.write_text('[[criterion]]\nname = "x"\nresult = "nowhere"\nvalue = "v"\nat_most = 1\n')
+    before = (results / "report.html").stat().st_mtime_ns
+    assert main(["report", str(results), "--criteria", str(strict)]) == 2
+    assert "criterion[0].result" in capsys.readouterr().err
+    assert (results / "report.html").stat().st_mtime_ns == before

@@ -60,8 +60,11 @@ def _figures(folder: Path, results: dict) -> dict:
     return out
 
 
-def build_html(folder, *, title: str | None = None) -> str:
-    """The report of ``folder``'s results as one self-contained HTML page."""
+def build_html(folder, *, title: str | None = None, criteria=None) -> str:
+    """The report of ``folder``'s results as one self-contained HTML page, judged against
+    ``criteria`` (:mod:`.criteria`; None: its defaults)."""
+    from .criteria import DEFAULTS, evaluate, verdict
+
     folder = Path(folder)
     results = load_results(folder)
     if not results:
@@ -71,24 +74,30 @@ def build_html(folder, *, title: str | None = None) -> str:
     env.filters["n"] = number
     campaign = next((r["campaign"] for r in results.values() if isinstance(r.get("campaign"), str)), None)
     inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
+    acceptance = evaluate(DEFAULTS if criteria is None else criteria, results)
     return env.get_template("report.html.j2").render(
         title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
+        acceptance=acceptance, verdict=verdict(acceptance), default_criteria=criteria is None,
         figures=_figures(folder, results), provenance=provenance(inputs, root=folder), steps=list(RESULTS))
 
 
-def write_report(folder, *, pdf: bool = False) -> tuple[Path, Path | None, tuple]:
-    """``folder``/report.html (and report.pdf with ``pdf``) from the results there: (the HTML,
-    the PDF or None, the steps reported). Refuses, writing nothing, a folder with no result
-    or, with ``pdf``, a machine that cannot make one (:class:`InputError`)."""
+def write_report(folder, *, pdf: bool = False, criteria_path=None) -> tuple[Path, Path | None, tuple]:
+    """``folder``/report.html (and report.pdf with ``pdf``) from the results there, judged
+    against the criteria file ``criteria_path`` (None: the defaults): (the HTML, the PDF or
+    None, the steps reported). Refuses, writing nothing, a folder with no result, a malformed
+    criteria file or, with ``pdf``, a machine that cannot make one (:class:`InputError`)."""
+    from .criteria import load_criteria
+
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError("not a results folder (no such directory)", path=folder)
     html_path, pdf_path = folder / "report.html", (folder / "report.pdf" if pdf else None)
-    check_outputs([html_path, pdf_path], inputs=[folder / name for name, _ in RESULTS.values()])
+    check_outputs([html_path, pdf_path], inputs=[*(folder / name for name, _ in RESULTS.values()), criteria_path])
+    criteria = None if criteria_path is None else load_criteria(criteria_path)
     if pdf and (why := pdf_available()) is not None:
         raise InputError(f"cannot make a PDF here: {why}", key="--pdf")
     try:
-        html = build_html(folder)
+        html = build_html(folder, criteria=criteria)
     except FileNotFoundError as e:
         raise InputError(str(e), path=folder) from None
     write_atomic(html_path, lambda f: f.write(html.encode("utf-8")))
