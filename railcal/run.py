@@ -155,8 +155,13 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
         steps.append(entry)
         log.append(f"{step.name} ({seconds:.1f} s): {text or entry['reason']}")
         say(f"    {text or entry['reason']}")
-        if code != 0 and step.needed:
-            break
+        if code != 0:
+            # an earlier run's results are stale now: this step's, and when the run stops here, every later step's
+            for stale in (planned[i - 1:] if step.needed else [step]):
+                for o in stale.outputs:
+                    Path(o).unlink(missing_ok=True)
+            if step.needed:
+                break
     why_no_pdf = pdf_available() if pdf else "not asked for"
     try:
         html, made_pdf, reported = write_report(out, pdf=why_no_pdf is None, criteria_path=criteria_path)

@@ -69,3 +69,17 @@ def test_run_refuses_to_write_inside_its_campaign(campaign, capsys):
     assert main(["run", str(campaign), "--out", str(campaign / "results"), "--quiet"]) == 2
     assert "an input of this command" in capsys.readouterr().err
     assert sorted(p.name for p in campaign.iterdir()) == before
+
+
+@pytest.mark.slow(seconds=30)
+def test_a_step_that_fails_now_leaves_no_result_of_an_earlier_run(campaign, tmp_path):
+    """Run, then run again after the track recording is gone: validation cannot be done, and
+    its earlier result is not left for the report to show as current."""
+    copy = tmp_path / "c"
+    shutil.copytree(campaign, copy)
+    out = tmp_path / "results"
+    assert main(["run", str(copy), "--out", str(out), "--quiet", "--no-pdf"]) == 0
+    assert (out / "validation.json").is_file()
+    shutil.rmtree(copy / "track")
+    assert main(["run", str(copy), "--out", str(out), "--quiet", "--no-pdf"]) == 0
+    assert _record(out)["validate"]["status"] == "failed" and not (out / "validation.json").exists()
