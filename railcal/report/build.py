@@ -60,15 +60,12 @@ def _figures(folder: Path, results: dict) -> dict:
     return out
 
 
-def build_html(folder, *, title: str | None = None, criteria=None) -> str:
-    """The report of ``folder``'s results as one self-contained HTML page, judged against
-    ``criteria`` (:mod:`.criteria`; None: its defaults)."""
+def build_html(folder, results: dict, *, title: str | None = None, criteria=None) -> str:
+    """The report of ``folder``'s ``results`` (:func:`load_results`) as one self-contained
+    HTML page, judged against ``criteria`` (:mod:`.criteria`; None: its defaults)."""
     from .criteria import DEFAULTS, evaluate, verdict
 
     folder = Path(folder)
-    results = load_results(folder)
-    if not results:
-        raise FileNotFoundError(f"{folder}: no step result ({', '.join(n for n, _ in RESULTS.values())}) to report")
     env = jinja2.Environment(loader=jinja2.PackageLoader("railcal.report", "templates"),
                              autoescape=jinja2.select_autoescape(["html", "j2"]), undefined=jinja2.StrictUndefined)
     env.filters["n"] = number
@@ -96,11 +93,11 @@ def write_report(folder, *, pdf: bool = False, criteria_path=None) -> tuple[Path
     criteria = None if criteria_path is None else load_criteria(criteria_path)
     if pdf and (why := pdf_available()) is not None:
         raise InputError(f"cannot make a PDF here: {why}", key="--pdf")
-    try:
-        html = build_html(folder, criteria=criteria)
-    except FileNotFoundError as e:
-        raise InputError(str(e), path=folder) from None
+    results = load_results(folder)
+    if not results:
+        raise InputError(f"no step result ({', '.join(n for n, _ in RESULTS.values())}) to report", path=folder)
+    html = build_html(folder, results, criteria=criteria)
     write_atomic(html_path, lambda f: f.write(html.encode("utf-8")))
     if pdf:
         html_to_pdf(html, pdf_path)
-    return html_path, pdf_path, tuple(load_results(folder))
+    return html_path, pdf_path, tuple(results)
