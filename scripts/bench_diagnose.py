@@ -180,6 +180,11 @@ Clean 8340 and reservoir 8134 stay `unexplained` with 24 starts; on 8340 a fit s
 truth's powerpack returns to the same 8.47 Hz (a model-form residual, not a search's). Re-run
 (not fresh) clean j = 0-49: false alarms 0-1 of 50, `unexplained` 4-7 (8 before), 8340 among
 them; airspring_reservoir j = 0-49: 42-45 of 50, no wrong name, 8129 and 8134 `unexplained`.
+Measured (7d1bef0, re-run, not fresh): clean j = 0-49 `none` **44**, `unexplained` 6 (8318,
+8323, 8331, 8333, 8339, 8340; 8321 and 8335 now `none`), **false alarms 0/50 (0-7 %)**, as
+forecast. Reservoir j = 0-49 **43/50 (74-93 %)**, as forecast and the same seven misses as on
+9e2debe (`none` on the five smallest, 8105, 8112, 8141, 8146, 8148; `unexplained` 8129,
+8134), no wrong name, 8 of the 43 `low`. Two lanes, diagnosis median 56 s (clean).
 
 Seed rule (stated once, never retired): case k, repetition j (0-based, j < 50) -> seed
 ``first_seed + 50 k + j``, ``first_seed`` = 8000 for the bench: seeds 8000-8649. Development
