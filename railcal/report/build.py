@@ -52,7 +52,7 @@ def _figures(folder: Path, results: dict) -> dict:
         found = []
         for p in paths:
             p = Path(p)
-            for candidate in (p, folder / p.name):
+            for candidate in (folder / p.name, p):  # beside the result first: a relative path was the command's
                 if candidate.is_file():
                     found.append(data_uri(candidate))
                     break
