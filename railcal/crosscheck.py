@@ -112,7 +112,7 @@ def _plot(res, ref, fmu, path: Path) -> Path:
 
     from calibration.identification.plots import save_figure
 
-    names = ("carbody_acc_z", "bogie1_acc_z", "bogie1_pitch_rate")
+    names = {"carbody_acc_z": "m/s^2", "bogie1_acc_z": "m/s^2", "bogie1_pitch_rate": "rad/s"}
     fig, axes = plt.subplots(len(names), 1, figsize=(9, 7), sharex=True)
     k = res.t <= min(2.0, res.t[-1])
     for ax, n in zip(axes, names):
@@ -120,7 +120,7 @@ def _plot(res, ref, fmu, path: Path) -> Path:
         ax.plot(res.t[k], res.outputs[n][k], "C0-", lw=1.0, label="exudyn")
         if fmu is not None:
             ax.plot(res.t[k], fmu[n][:len(res.t)][k], "C3--", lw=1.0, label="FMU (fmpy)")
-        ax.set_ylabel(n)
+        ax.set_ylabel(f"{n} [{names[n]}]")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("exudyn cross-check over the track")
