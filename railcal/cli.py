@@ -231,8 +231,7 @@ def cmd_run(args) -> int:
     failed = [f"{s['name']} ({s['reason']})" for s in record["steps"] if s["status"] != "done"]
     print(f"run of {campaign.root} with {model}: {len(done)} steps done"
           f"{'; not done: ' + '; '.join(failed) if failed else ''}; wrote {args.out}")
-    needed = {"identify", "calibrate"}
-    return EXIT_INPUT if any(s["status"] != "done" and s["name"] in needed for s in record["steps"]) else EXIT_OK
+    return EXIT_INPUT if record["stopped_at"] else EXIT_OK
 
 
 # ------------------------------------------------------------------------------- report

@@ -43,12 +43,12 @@ class Step:
     needed: bool = False  # its failure stops the run
 
 
-def _content_key(step: Step, fingerprint) -> str:
-    """SHA-256 of the step's command line and its inputs' content."""
+def _content_key(step: Step, known: dict) -> str:
+    """SHA-256 of the step's command line and its inputs' content (``known``: hashes already
+    made, by path: the campaign folder's fingerprint)."""
     h = hashlib.sha256(json.dumps(list(step.argv)).encode())
-    for path in step.inputs:
-        path = Path(path)
-        h.update((fingerprint(path) if path.is_dir() else file_sha256(path) if path.is_file() else "absent").encode())
+    for path in map(Path, step.inputs):
+        h.update((known.get(path) or (file_sha256(path) if path.is_file() else "absent")).encode())
     return h.hexdigest()
 
 
@@ -127,18 +127,13 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
             previous = {s["name"]: s for s in json.loads(record_path.read_text()).get("steps", [])}
         except (ValueError, AttributeError):
             previous = {}
-    fingerprints: dict = {}
-
-    def fingerprint(path: Path) -> str:
-        if path not in fingerprints:
-            fingerprints[path] = campaign.fingerprint() if path == campaign.root else file_sha256(path)
-        return fingerprints[path]
-
-    steps, log = [], []
+    campaign_sha = campaign.fingerprint()  # every step reads the campaign: hashed once
+    known = {Path(campaign.root): campaign_sha}
+    steps, log, stopped = [], [], None
     planned = plan(campaign, out, model)
     for i in range(1, len(planned) + 1):
         step = plan(campaign, out, model)[i - 1]  # planned again: a step's options may read an earlier result
-        key = _content_key(step, fingerprint)
+        key = _content_key(step, known)
         last = previous.get(step.name, {})
         if last.get("key") == key and last.get("status") == "done" and all(Path(o).exists() for o in step.outputs):
             steps.append({**last, "status": "done", "reused": True})
@@ -161,6 +156,7 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
                 for o in stale.outputs:
                     Path(o).unlink(missing_ok=True)
             if step.needed:
+                stopped = step.name
                 break
     why_no_pdf = pdf_available() if pdf else "not asked for"
     try:
@@ -171,8 +167,8 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
                                                                             f" (no PDF: {why_no_pdf})"))
     except InputError as e:
         steps.append({"name": "report", "status": "failed", "reason": str(e)})
-    record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign.fingerprint(),
-              "model": model, "steps": steps, "provenance": provenance([], argv=None)}
+    record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign_sha,
+              "model": model, "stopped_at": stopped, "steps": steps, "provenance": provenance([], argv=None)}
     write_json_atomic(record_path, record)
     previous_log = log_path.read_text() if log_path.is_file() else ""
     write_atomic(log_path, lambda fh: fh.write((previous_log + "".join(f"{line}\n" for line in log)).encode()))

@@ -35,6 +35,7 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     assert "9 steps done" in capsys.readouterr().out
     record = _record(out)
     assert list(record) == STEPS and all(s["status"] == "done" for s in record.values()), record
+    assert json.loads((out / "run.json").read_text())["stopped_at"] is None
     for name in ("identification", "calibration", "validation", "diagnosis", "crosscheck", "crosscheck_extended"):
         assert json.loads((out / f"{name}.json").read_text())["format"].startswith("railcal-")
     assert (out / "fmu" / "baseline.fmu").is_file() and (out / "fmu" / "extended.fmu").is_file()

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Iterator
 
 from .errors import CampaignError, excerpt
-from .files import check_file, read_input_file
+from .files import check_file, hash_file, read_input_file
 from .limits import (GEOMETRY_RANGES, MAX_ABS_DISTANCE, MAX_ABS_LEVEL, MAX_ABS_TIME, MAX_COLUMNS, MAX_INPUT_BYTES,
                      MAX_POSITION, MAX_RUN_BYTES, MAX_RUN_CELLS, MAX_RUN_LINES, MAX_SPEED, MAX_TOML_BYTES,
                      MAX_TOML_DEPTH, RATE_RANGE, RATE_TOLERANCE)
@@ -78,9 +78,7 @@ class Campaign:
         h = hashlib.sha256()
         for path in (self.root / "campaign.toml", *sorted(self.run_paths), *sorted(self.track_paths)):
             h.update(path.name.encode() + b"\0")
-            with open(path, "rb") as f:
-                for block in iter(lambda: f.read(1 << 20), b""):
-                    h.update(block)
+            hash_file(h, path)
             h.update(b"\0")
         return "sha256:" + h.hexdigest()
 

@@ -68,3 +68,10 @@ def read_input_file(path, *, limit: int = MAX_INPUT_BYTES) -> str:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise CampaignError("not UTF-8 text", path=path, line=data[:e.start].count(b"\n") + 1) from None
+
+
+def hash_file(h, path) -> None:
+    """Feed the bytes of the file at ``path`` into the hashlib object ``h``, 1 MiB at a time."""
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
