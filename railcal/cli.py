@@ -228,9 +228,14 @@ def cmd_run(args) -> int:
     record = run_campaign(campaign, Path(args.out), model=model, pdf=not args.no_pdf, say=say,
                           criteria_path=args.criteria)
     done = [s["name"] for s in record["steps"] if s["status"] == "done"]
-    failed = [f"{s['name']} ({s['reason']})" for s in record["steps"] if s["status"] != "done"]
+    failed = [f"{s['name']} ({s['reason']})" for s in record["steps"] if s["status"] == "failed"]
+    skipped = {}
+    for s in record["steps"]:
+        if s["status"] == "skipped":
+            skipped.setdefault(s["reason"], []).append(s["name"])
     print(f"run of {campaign.root} with {model}: {len(done)} steps done"
-          f"{'; not done: ' + '; '.join(failed) if failed else ''}; wrote {args.out}")
+          f"{'; not done: ' + '; '.join(failed) if failed else ''}"
+          f"{''.join(f'; skipped {chr(44).join(names)}: {why}' for why, names in skipped.items())}; wrote {args.out}")
     return EXIT_INPUT if record["stopped_at"] else EXIT_OK
 
 

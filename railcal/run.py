@@ -41,6 +41,7 @@ class Step:
     inputs: tuple
     outputs: tuple
     needed: bool = False  # its failure stops the run
+    skip: str | None = None  # why it is not run on this campaign (its inputs say it cannot be)
 
 
 def _content_key(step: Step, known: dict) -> str:
@@ -61,6 +62,21 @@ def _speed(identification: Path, default: float = 40.0) -> float:
         return default
 
 
+def _no_extended_model(diagnosis: Path) -> str | None:
+    """Why the diagnosis at ``diagnosis`` gives no extended model to export and cross-check,
+    or None when it gives one (or has not been made yet)."""
+    try:
+        d = json.loads(diagnosis.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(d, dict) or "parameters" in d:
+        return None
+    if d.get("extension"):
+        return (f"the box-type FMU and its exudyn cross-check do not carry the diagnosis's extension "
+                f"({d['extension'].get('name')}) yet")
+    return f"the diagnosis found {d.get('cause')}: there is no extended model, the calibrated one stands"
+
+
 def plan(campaign, out: Path, model: str) -> list[Step]:
     """The steps of a run of ``campaign`` (an opened campaign) into ``out`` with ``model``."""
     root = str(campaign.root)
@@ -71,6 +87,7 @@ def plan(campaign, out: Path, model: str) -> list[Step]:
     if model == "box":
         calibrate += ["--method", "pso"]
     fmu = {"baseline": out / "fmu" / "baseline.fmu", "extended": out / "fmu" / "extended.fmu"}
+    skip = {"baseline": None, "extended": _no_extended_model(f["diagnosis"])}
     steps = [Step("identify", ("identify", root, "--out", str(f["identification"])), (campaign.root,),
                   (f["identification"],), needed=True),
              Step("calibrate", tuple(calibrate + ["--out", str(f["calibration"])]),
@@ -83,14 +100,14 @@ def plan(campaign, out: Path, model: str) -> list[Step]:
         extra = ["--track", *track] if track and model == "car2d" else []
         steps.append(Step(f"export-fmu {which}", ("export-fmu", "--calibration", str(source), *extra,
                                                   "--out", str(fmu[which])),
-                          (source, *map(Path, track)), (fmu[which],)))
+                          (source, *map(Path, track)), (fmu[which],), skip=skip[which]))
     speed = f"{_speed(f['identification']):.6g}"
     for which, source, result in (("baseline", f["calibration"], f["crosscheck"]),
                                   ("extended", f["diagnosis"], f["crosscheck_extended"])):
         extra = ["--track", *track, "--speed", speed] if track and model == "car2d" else []
         steps.append(Step(f"crosscheck {which}", ("crosscheck", "--calibration", str(source), *extra,
                                                   "--out", str(result)),
-                          (source, *map(Path, track)), (result,)))
+                          (source, *map(Path, track)), (result,), skip=skip[which]))
     return steps
 
 
@@ -135,6 +152,14 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
         step = plan(campaign, out, model)[i - 1]  # planned again: a step's options may read an earlier result
         key = _content_key(step, known)
         last = previous.get(step.name, {})
+        if step.skip is not None:
+            for o in step.outputs:  # an earlier run's result of it would describe another model
+                Path(o).unlink(missing_ok=True)
+            steps.append({"name": step.name, "command": ["railcal", *step.argv], "key": key, "status": "skipped",
+                          "reason": step.skip})
+            log.append(f"{step.name}: skipped, {step.skip}")
+            say(f"[{i}/{len(planned) + 1}] {step.name}: skipped, {step.skip}")
+            continue
         if last.get("key") == key and last.get("status") == "done" and all(Path(o).exists() for o in step.outputs):
             steps.append({**last, "status": "done", "reused": True})
             say(f"[{i}/{len(planned) + 1}] {step.name}: unchanged since its last run, kept")

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # The Debian packages railcal needs besides Python's: the mingw-w64 cross compiler (the FMUs'
-# win64 binaries) and the PDF route's libraries (WeasyPrint's Pango and HarfBuzz subsetter, a
-# font, and poppler-utils to look at a PDF's pages). Installs what is missing when it can (as
+# win64 binaries), the PDF route's libraries (WeasyPrint's Pango and HarfBuzz subsetter, a
+# font, and poppler-utils to look at a PDF's pages) and Chromium, which the tests use to look
+# at the HTML report as a browser shows it. Installs what is missing when it can (as
 # root or with passwordless sudo); otherwise names what is missing and carries on, and the
 # features that need it say so when used.
 set -u
 need=()
 command -v x86_64-w64-mingw32-gcc >/dev/null 2>&1 || need+=(gcc-mingw-w64-x86-64 binutils-mingw-w64-x86-64)
+command -v chromium >/dev/null 2>&1 || need+=(chromium)
 for pkg in libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz-subset0 fonts-dejavu-core poppler-utils; do
     dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need+=("$pkg")
 done
@@ -25,5 +27,5 @@ if [ "$(id -u)" != 0 ]; then
     fi
 fi
 ($SUDO apt-get update -qq && $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null) \
-    || echo "warning: could not install ${need[*]}; win64 FMU binaries or PDF reports may be unavailable" >&2
+    || echo "warning: could not install ${need[*]}; win64 FMU binaries, PDF reports or the report's browser check may be unavailable" >&2
 exit 0

@@ -1,8 +1,9 @@
 """Shared fixtures: small campaigns written by the project's own writer; the BLAS thread
-cap of ``make test``'s workers; the ``slow`` tier."""
+cap of ``make test``'s workers; the ``slow`` tier; every figure saved with units on its axes."""
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 import pytest
@@ -166,6 +167,53 @@ class _GroupInNodeId:
 def pytest_configure(config):
     if hasattr(config, "workerinput"):  # an xdist worker
         config.pluginmanager.register(_GroupInNodeId(), "railcal-xdist-group-in-node-id")
+
+
+# ------------------------------------------------------------------ figures
+#: a unit on an axis label: "[m/s^2]", "[-]", "[(m/s^2)^2/Hz]"
+_UNIT = re.compile(r"\[[^\]]+\]")
+_UNLABELLED: list[str] = []
+
+
+def axes_without_units(fig) -> list[str]:
+    """'<axes title>: x' for each axis of ``fig`` that shows data and ticks but whose label
+    (or, on shared axes, a sibling's: subplots label the outer row or column) has no unit."""
+    missing = []
+    for ax in fig.axes:
+        if not ax.axison or not (ax.lines or ax.images or ax.collections or ax.patches):
+            continue
+        for which in ("x", "y"):
+            axis = ax.xaxis if which == "x" else ax.yaxis
+            if not axis.get_visible() or len(axis.get_majorticklocs()) == 0:
+                continue  # a colorbar's short side
+            siblings = (ax.get_shared_x_axes() if which == "x" else ax.get_shared_y_axes()).get_siblings(ax)
+            if not any(_UNIT.search(o.get_xlabel() if which == "x" else o.get_ylabel()) for o in siblings):
+                title = ax.get_title() or (fig._suptitle.get_text() if fig._suptitle else "untitled")
+                missing.append(f"{title!r}: {which} ({(ax.get_xlabel() if which == 'x' else ax.get_ylabel())!r})")
+    return missing
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _every_figure_is_checked_for_units():
+    """Every figure any test makes, through any code path, is looked at as it is saved."""
+    from matplotlib.figure import Figure
+
+    save = Figure.savefig
+
+    def checked(self, *args, **kwargs):
+        _UNLABELLED.extend(axes_without_units(self))
+        return save(self, *args, **kwargs)
+
+    Figure.savefig = checked
+    yield
+    Figure.savefig = save
+
+
+@pytest.fixture(autouse=True)
+def _figures_have_units_on_both_axes():
+    yield
+    missing, _UNLABELLED[:] = list(_UNLABELLED), []
+    assert not missing, f"figure axes without a unit in their label: {missing}"
 
 
 @pytest.fixture

@@ -12,7 +12,8 @@ import pytest
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from railcal.report.render import data_uri, html_to_pdf, pdf_available, pdf_page_png  # noqa: E402
+from conftest import axes_without_units  # noqa: E402
+from railcal.report.render import chromium, data_uri, html_screenshot, html_to_pdf, pdf_available, pdf_page_png  # noqa: E402,E501
 
 WHY_NOT = pdf_available()
 
@@ -56,3 +57,32 @@ def test_a_page_that_reaches_outside_itself_is_refused_and_nothing_is_left(tmp_p
     with pytest.raises(ValueError, match="not self-contained.*example.invalid"):
         html_to_pdf(_page(tmp_path, "<img src='http://example.invalid/x.png'/>"), tmp_path / "r.pdf")
     assert not (tmp_path / "r.pdf").exists() and not (tmp_path / "r.pdf.part").exists()
+
+
+@pytest.mark.skipif(chromium() is None, reason="Chromium not installed: run scripts/install_system_packages.sh")
+def test_the_html_page_as_headless_chromium_shows_it(tmp_path):
+    page = tmp_path / "report.html"
+    page.write_text(_page(tmp_path))
+    png = html_screenshot(page, tmp_path / "shot.png", width=600, height=500)
+    image = plt.imread(png)[..., :3]
+    assert image.shape[:2] == (500, 600)
+    dark = image.mean(axis=2) < 0.5
+    assert dark[:80].any(), "no heading at the top of the page"
+    assert dark[80:].sum() > 500, "no table or figure below it"
+
+
+def test_an_axis_without_a_unit_is_named_and_a_shared_one_is_labelled_once():
+    fig, axes = plt.subplots(2, 2, sharex="col")
+    for ax in axes.ravel():
+        ax.plot([1, 2], [3, 4])
+        ax.set_ylabel("acceleration [m/s^2]")
+    axes[0, 0].set_title("top left")
+    axes[0, 1].set_ylabel("acceleration")  # no unit
+    for ax in axes[-1]:
+        ax.set_xlabel("frequency [Hz]")
+    # a colorbar's long side is an axis like any other; its short side has no ticks and needs no label
+    fig.colorbar(axes[0, 0].imshow(np.eye(2)), ax=axes[0, 0], label="level [-]")
+    assert axes_without_units(fig) == ["'untitled': y ('acceleration')"]
+    axes[1, 0].set_xlabel("frequency")
+    assert "'top left': x ('')" in axes_without_units(fig)
+    plt.close(fig)

@@ -7,6 +7,7 @@ import shutil
 
 import pytest
 
+from calibration.data.campaign import open_campaign
 from railcal.cli import main
 from railcal.report.render import pdf_available
 from calibration.truth.in_service import InServiceSettings, synth_in_service
@@ -29,7 +30,7 @@ def _record(out):
 
 
 @pytest.mark.slow(seconds=60)
-def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, capsys):
+def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, capsys, monkeypatch):
     out = tmp_path / "results"
     assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
     assert "9 steps done" in capsys.readouterr().out
@@ -50,6 +51,33 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     again = _record(out)
     assert [n for n, s in again.items() if s.get("reused")] == [n for n in STEPS[:-1] if n != "validate"]
     assert again["validate"]["status"] == "done" and not again["validate"].get("reused")
+
+    # a diagnosis that gives no extended model: its FMU and cross-check are skipped, saying why, and
+    # their results from before (of another model) are gone
+    monkeypatch.setattr("railcal.run._no_extended_model", lambda path: "the diagnosis found none")
+    capsys.readouterr()
+    assert main(["run", str(campaign), "--out", str(out), "--quiet", "--no-pdf"]) == 0
+    third = _record(out)
+    assert {n for n, s in third.items() if s["status"] == "skipped"} == {"export-fmu extended", "crosscheck extended"}
+    assert third["crosscheck extended"]["reason"] == "the diagnosis found none"
+    assert not (out / "fmu" / "extended.fmu").exists() and not (out / "crosscheck_extended.json").exists()
+    assert "skipped export-fmu extended,crosscheck extended: the diagnosis found none" in capsys.readouterr().out
+
+
+def test_a_diagnosis_without_an_extended_model_plans_no_extended_fmu(campaign, tmp_path):
+    from railcal.run import plan
+
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "diagnosis.json").write_text(json.dumps({"cause": "none", "extension": None}))
+    steps = {s.name: s for s in plan(open_campaign(campaign), out, "box")}
+    assert "found none" in steps["export-fmu extended"].skip and steps["export-fmu baseline"].skip is None
+    (out / "diagnosis.json").write_text(json.dumps({"cause": "underfloor_equipment",
+                                                    "extension": {"name": "underfloor_equipment"}}))
+    steps = {s.name: s for s in plan(open_campaign(campaign), out, "box")}
+    assert "underfloor_equipment" in steps["crosscheck extended"].skip
+    (out / "diagnosis.json").write_text(json.dumps({"cause": "none", "parameters": {}}))
+    assert all(s.skip is None for s in plan(open_campaign(campaign), out, "car2d"))
 
 
 @pytest.mark.slow(seconds=30)

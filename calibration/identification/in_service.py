@@ -35,6 +35,7 @@ from .. import checks
 from ..data.campaign import Campaign
 from ..data.errors import CampaignError
 from ..data.outputs import result_label, result_number, result_rows
+from ..data.units import SI_UNIT
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
@@ -418,7 +419,8 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     rejected = _rejected(peaks, fdd, modes, lines)
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
                                    frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs),
-                                   collector.psd_by_speed(), tuple(undetermined))
+                                   collector.psd_by_speed(units={s.name: SI_UNIT[s.quantity] for s in meta.sensors}),
+                                   tuple(undetermined))
 
 
 def _no_peak(m: IdentifiedMode) -> str | None:

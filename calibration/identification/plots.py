@@ -33,7 +33,7 @@ def plot_identification(result: InServiceIdentification, path, *, truth: dict | 
             ax.plot(fr, y[k], "v", color=line.get_color(), ms=8)
     ax.set_title("Segmental FDD: summed first singular values (normalised), picks marked")
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("sum of s1 / median")
+    ax.set_ylabel("first singular value / its median [-]")
     ax.set_xlim(result.fdd.settings.band)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(True, which="both", alpha=0.3)
@@ -85,14 +85,15 @@ def plot_spectra(result: InServiceIdentification, path) -> Path | None:
                  if ln.kind == "speed_independent" and name in ln.channels]
         if tones:
             ax.vlines(tones, 0, 1, transform=across, colors="k", linestyles="--", lw=0.8)
-        ax.set_ylabel(name, fontsize=7)
+        unit = psd.units.get(name)
+        ax.set_ylabel(f"{name}\n[({unit})^2/Hz]" if unit else f"{name}\n[SI^2/Hz]", fontsize=7)
         # a few decades' labels and no minor ticks on y: a tick is several artists, and a
         # PSD spans many decades in nine panels
         ax.yaxis.set_major_locator(LogLocator(numticks=5))
         ax.yaxis.set_minor_locator(NullLocator())
         ax.grid(True, which="major", alpha=0.3)
     axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
-    axes[0, 0].set_title("PSD per channel [SI^2/Hz] by speed class; dotted: speed-dependent lines, dashed: fixed tones")
+    axes[0, 0].set_title("PSD per channel by speed class; dotted: speed-dependent lines, dashed: fixed tones")
     axes[-1, 0].set_xlabel("frequency [Hz]")
     fig.tight_layout()
     fig.set_dpi(100)

@@ -481,6 +481,16 @@ class Output:
     body: str
     x: float = 0.0
 
+    @property
+    def unit(self) -> str:
+        """Its SI unit."""
+        return OUTPUT_UNITS[self.kind]
+
+
+#: a model output's SI unit by its kind (:class:`Output`)
+OUTPUT_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2", "pitch_angle": "rad",
+                "pitch_rate": "rad/s"}
+
 
 @dataclass(frozen=True)
 class StateSpace:

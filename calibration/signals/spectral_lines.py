@@ -21,7 +21,7 @@ Frequencies in Hz, wavelengths in m, prominences in dB.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.signal
@@ -157,8 +157,9 @@ class LineWindowCollector:
     def classify(self) -> list[SpectralLine]:
         return _classify(self.f, self.windows, self.channels, self.settings)
 
-    def psd_by_speed(self, n_classes: int = 3) -> "ChannelPSDs | None":
-        """Mean PSD of each channel over the windows of each speed class (equal-count classes)."""
+    def psd_by_speed(self, n_classes: int = 3, units: dict | None = None) -> "ChannelPSDs | None":
+        """Mean PSD of each channel over the windows of each speed class (equal-count classes);
+        ``units``: each channel's SI unit, for the figures."""
         if len(self.windows) < n_classes:
             return None
         speeds = np.array([w.speed for w in self.windows])
@@ -166,7 +167,8 @@ class LineWindowCollector:
         classes = np.array_split(order, n_classes)
         P = np.stack([w.psd_si for w in self.windows])
         return ChannelPSDs(self.f, tuple((float(speeds[c].min()), float(speeds[c].max())) for c in classes),
-                           {ch: np.stack([P[c, i].mean(axis=0) for c in classes]) for i, ch in enumerate(self.channels)})
+                           {ch: np.stack([P[c, i].mean(axis=0) for c in classes]) for i, ch in enumerate(self.channels)},
+                           dict(units or {}))
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,7 @@ class ChannelPSDs:
     frequency: np.ndarray  # [Hz]
     speed_classes: tuple[tuple[float, float], ...]  # [m/s]
     psd: dict  # channel -> (n_classes, n_f)
+    units: dict = field(default_factory=dict)  # channel -> its SI unit, where known
 
     def to_json(self, n_points: int = 200) -> dict:
         f = self.frequency

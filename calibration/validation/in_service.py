@@ -82,6 +82,7 @@ class ValidationResult:
     band_m: tuple[float, float]
     runs: tuple[RunComparison, ...]
     skipped: tuple = ()  # (run, channel, reason) left out of the comparison
+    units: dict = field(default_factory=dict)  # channel -> its SI unit
 
     def summary(self) -> dict:
         """Per channel: median over runs of each metric."""
@@ -251,7 +252,7 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
         raise CampaignError(f"no run covers at least {min_length + 2 * trim:g} m of the track recording "
                             f"{track.path.name} with every wheelset ({min_length:g} m compared plus {trim:g} m left "
                             "out at each end) and usable sensors", path=track.path)
-    return ValidationResult(track.name, band, tuple(runs), tuple(skipped))
+    return ValidationResult(track.name, band, tuple(runs), tuple(skipped), {o.name: o.unit for o in outputs})
 
 
 def _floor_comfort(run, floor: list, y: np.ndarray, span: tuple, s: np.ndarray, grid: np.ndarray, keep: slice,

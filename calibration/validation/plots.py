@@ -22,7 +22,9 @@ def plot_validation(result: ValidationResult, path) -> Path:
         ax.plot(r.distance, r.measured[name], lw=0.8, label="measured")
         ax.plot(r.distance, r.simulated[name], lw=0.8, label="simulated")
         ax.set_title(f"{r.run_id}: {name}, band {result.band_m[0]:g}-{result.band_m[1]:g} m")
+        unit = result.units.get(name, "SI")
         ax.set_xlabel("distance [m]")
+        ax.set_ylabel(f"{name} [{unit}]", fontsize=8)
         ax.legend(fontsize=7)
         ax = axes[k, 1]
         nper = min(len(r.distance), int(4 * result.band_m[1] / STEP_M))
@@ -32,6 +34,7 @@ def plot_validation(result: ValidationResult, path) -> Path:
             ax.loglog(1 / nu[sel], P[sel], lw=0.8, label=label)
         ax.axvspan(*result.band_m, color="0.9")
         ax.set_xlabel("wavelength [m]")
+        ax.set_ylabel(f"PSD [({unit})^2 m]", fontsize=8)
         ax.set_title("PSD over spatial frequency")
         ax.legend(fontsize=7)
     fig.tight_layout()

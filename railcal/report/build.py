@@ -8,6 +8,7 @@ JSON path it came from (``data-json``), so a test can hold the report to its res
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -44,6 +45,16 @@ def load_results(folder) -> dict:
             if (folder / name).is_file()}
 
 
+def load_run(folder) -> dict | None:
+    """The run record (``railcal run``'s run.json) in ``folder``, or None when there is none
+    or it cannot be read: the report then says nothing of how its results were made."""
+    try:
+        record = json.loads((Path(folder) / "run.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) and isinstance(record.get("steps"), list) else None
+
+
 def _figures(folder: Path, results: dict) -> dict:
     """{step: [data URI, ...]} of the figures each result names that exist."""
     out = {}
@@ -63,7 +74,7 @@ def _figures(folder: Path, results: dict) -> dict:
 def build_html(folder, results: dict, *, title: str | None = None, criteria=None) -> str:
     """The report of ``folder``'s ``results`` (:func:`load_results`) as one self-contained
     HTML page, judged against ``criteria`` (:mod:`.criteria`; None: its defaults)."""
-    from .criteria import DEFAULTS, evaluate, verdict
+    from .criteria import DEFAULTS, campaign_kind, evaluate, verdict
 
     folder = Path(folder)
     env = jinja2.Environment(loader=jinja2.PackageLoader("railcal.report", "templates"),
@@ -75,7 +86,8 @@ def build_html(folder, results: dict, *, title: str | None = None, criteria=None
     return env.get_template("report.html.j2").render(
         title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
         acceptance=acceptance, verdict=verdict(acceptance), default_criteria=criteria is None,
-        figures=_figures(folder, results), provenance=provenance(inputs, root=folder), steps=list(RESULTS))
+        figures=_figures(folder, results), provenance=provenance(inputs, root=folder), steps=list(RESULTS),
+        kind=campaign_kind(results), run=load_run(folder))
 
 
 def write_report(folder, *, pdf: bool = False, criteria_path=None) -> tuple[Path, Path | None, tuple]:

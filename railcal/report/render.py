@@ -12,6 +12,7 @@ import base64
 import mimetypes
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 _TYPES = {".png": "image/png", ".svg": "image/svg+xml", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
@@ -63,3 +64,31 @@ def pdf_page_png(pdf, out_stem, *, page: int = 1, dpi: int = 60) -> Path:
     subprocess.run(["pdftoppm", "-png", "-r", str(dpi), "-f", str(page), "-l", str(page), "-singlefile",
                     str(pdf), str(out_stem)], check=True, capture_output=True, timeout=120)
     return Path(f"{out_stem}.png")
+
+
+#: Debian's Chromium, headless, offline and with no profile of its own: its background
+#: services would try the network, which a report must never need
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--hide-scrollbars", "--host-resolver-rules=MAP * ~NOTFOUND")
+
+
+def chromium() -> str | None:
+    """The headless browser's path (Debian's chromium), or None."""
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def html_screenshot(html, out, *, width: int = 1100, height: int = 1500) -> Path:
+    """The top ``width`` x ``height`` pixels of the HTML file ``html`` as headless Chromium
+    shows them, at ``out`` (PNG): the page as a person opening it sees it first."""
+    browser = chromium()
+    if browser is None:
+        raise RuntimeError("Chromium is not installed (Debian package chromium); run scripts/install_system_packages.sh")
+    out = Path(out)
+    with tempfile.TemporaryDirectory() as profile:
+        subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
+                        f"--screenshot={out.resolve()}", Path(html).resolve().as_uri()],
+                       check=True, capture_output=True, timeout=120)
+    if not out.is_file():
+        raise RuntimeError(f"Chromium wrote no screenshot of {html}")
+    return out
