@@ -73,6 +73,8 @@ def calibrate(args) -> str:
         raise InputError(f"--swarms {swarms} with --particles {args.particles}: each swarm needs 2 or more particles",
                          key="--swarms")
     if args.campaign is not None:
+        from calibration.models.box.shinkansen import LOWEST_ORDER_CHANGE
+
         campaign = campaign_of(args)
         try:
             factors = campaign_factor_set(args.factors, campaign)
@@ -91,9 +93,12 @@ def calibrate(args) -> str:
             identified = read_identification(args.identification, campaign, IdentifiedShapes.from_json)
         # a set's polish-only factors join in the polish, which follows the refinement
         polish = TYPED_POLISH_STEPS if args.refine and factors.polish_only else 0
+        if args.panel_order_change < LOWEST_ORDER_CHANGE:
+            raise InputError(f"{args.panel_order_change} would leave a panel order below 1 (lowest: "
+                             f"{LOWEST_ORDER_CHANGE})", key="--panel-order-change")
         result, ident = calibrate_box_campaign(campaign, swarm=swarm, factors=factors, identified=identified,
                                                refinement=RefineSettings(enabled=args.refine, polish_steps=polish),
-                                               progress=progress_for(args))
+                                               order_change=args.panel_order_change, progress=progress_for(args))
         out = result.to_json(ident)
     else:
         result = _calibrate_typed_targets(args, settings, swarms)

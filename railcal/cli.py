@@ -250,17 +250,18 @@ def cmd_report(args) -> int:
 
 # ------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
-    from railcal.demo import run_demo
+    from railcal.demo import CAMPAIGNS, RESULTS, run_demo
 
     out = Path(args.out)
     if os.path.lexists(out) and not out.is_dir():
         raise InputError("exists and is not a folder; --out takes the folder to write the demo into", path=out,
                          key="--out")
     # the demo replaces its own campaigns there: refuse before any work if one is not railcal's
-    for name in ("campaign", "excitation"):
+    for name in CAMPAIGNS.values():
         check_campaign_output(out / name, overwrite=True)
-    report = run_demo(Path(args.out), progress=progress_for(args), full=args.full)
-    print(f"demo finished: report {report}; wrote its results, figures and FMUs into {args.out}")
+    summary = run_demo(Path(args.out), progress=progress_for(args), full=args.full)
+    print(f"demo finished: {summary} (the answers against the truth); each campaign's results and sign-off "
+          f"report in {', '.join(str(out / r) for r in RESULTS.values())}")
     return EXIT_OK
 
 
@@ -358,6 +359,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "orthotropic (windowed, and the roof's, floor's and sides' rigidity across apart) (default: "
                         "credible with --targets, grouped with a campaign); a campaign's [priors] must name "
                         "factors of the set, and a factor without one is searched over the set's own range")
+    s.add_argument("--panel-order-change", type=int, default=0, metavar="N",
+                   help="box model with a campaign: add N to every panel's shape-function order (negative: a "
+                        "coarser, faster model; the file records it, and every later step rebuilds the same "
+                        "model) (default: 0, the full-order model)")
     s.add_argument("--seed", type=_seed, default=0, help="seed of the search")
     s.add_argument("--out", required=True, help="calibration JSON to write")
     _finish(s, cmd_calibrate, reads_campaign=True)

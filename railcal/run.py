@@ -20,7 +20,7 @@ import io
 import json
 import statistics
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from calibration.data.errors import InputError
@@ -77,8 +77,11 @@ def _no_extended_model(diagnosis: Path) -> str | None:
     return f"the diagnosis found {d.get('cause')}: there is no extended model, the calibrated one stands"
 
 
-def plan(campaign, out: Path, model: str) -> list[Step]:
-    """The steps of a run of ``campaign`` (an opened campaign) into ``out`` with ``model``."""
+def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[Step]:
+    """The steps of a run of ``campaign`` (an opened campaign) into ``out`` with ``model``;
+    ``options``: more command-line arguments of a step, by its name (``{"calibrate":
+    ["--particles", "200"]}``), which are part of its key."""
+    options = options or {}
     root = str(campaign.root)
     f = {name: out / f"{name}.json" for name in ("identification", "calibration", "validation", "diagnosis",
                                                  "crosscheck", "crosscheck_extended")}
@@ -108,7 +111,7 @@ def plan(campaign, out: Path, model: str) -> list[Step]:
         steps.append(Step(f"crosscheck {which}", ("crosscheck", "--calibration", str(source), *extra,
                                                   "--out", str(result)),
                           (source, *map(Path, track)), (result,), skip=skip[which]))
-    return steps
+    return [replace(s, argv=s.argv + tuple(options.get(s.name, ()))) for s in steps]
 
 
 def _invoke(argv) -> tuple[int, str, str]:
@@ -121,9 +124,11 @@ def _invoke(argv) -> tuple[int, str, str]:
     return code, out.getvalue().strip(), err.getvalue().strip()
 
 
-def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, criteria_path=None) -> dict:
-    """Run every step of :func:`plan` into ``out`` (created), skipping those unchanged, then
-    the report; return the run record (also written to ``out``/run.json)."""
+def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, criteria_path=None,
+                 options: dict | None = None) -> dict:
+    """Run every step of :func:`plan` (with ``options``) into ``out`` (created), skipping
+    those unchanged, then the report; return the run record (also written to
+    ``out``/run.json)."""
     from .report.build import write_report
     from .report.render import pdf_available
 
@@ -147,9 +152,9 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
     campaign_sha = campaign.fingerprint()  # every step reads the campaign: hashed once
     known = {Path(campaign.root): campaign_sha}
     steps, log, stopped = [], [], None
-    planned = plan(campaign, out, model)
+    planned = plan(campaign, out, model, options)
     for i in range(1, len(planned) + 1):
-        step = plan(campaign, out, model)[i - 1]  # planned again: a step's options may read an earlier result
+        step = plan(campaign, out, model, options)[i - 1]  # planned again: a step's options may read an earlier result
         key = _content_key(step, known)
         last = previous.get(step.name, {})
         if step.skip is not None:

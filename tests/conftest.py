@@ -177,7 +177,9 @@ _UNLABELLED: list[str] = []
 
 def axes_without_units(fig) -> list[str]:
     """'<axes title>: x' for each axis of ``fig`` that shows data and ticks but whose label
-    (or, on shared axes, a sibling's: subplots label the outer row or column) has no unit."""
+    (or, on shared axes, a sibling's: subplots label the outer row or column) has no unit.
+    An axis of names (its ticks labelled with words, as a MAC matrix's modes) has no unit,
+    but needs a label saying what the names are."""
     missing = []
     for ax in fig.axes:
         if not ax.axison or not (ax.lines or ax.images or ax.collections or ax.patches):
@@ -187,7 +189,10 @@ def axes_without_units(fig) -> list[str]:
             if not axis.get_visible() or len(axis.get_majorticklocs()) == 0:
                 continue  # a colorbar's short side
             siblings = (ax.get_shared_x_axes() if which == "x" else ax.get_shared_y_axes()).get_siblings(ax)
-            if not any(_UNIT.search(o.get_xlabel() if which == "x" else o.get_ylabel()) for o in siblings):
+            labels = [o.get_xlabel() if which == "x" else o.get_ylabel() for o in siblings]
+            ticks = axis.get_major_formatter().format_ticks(axis.get_majorticklocs())
+            named = any(any(c.isalpha() for c in t) and not t.startswith("$") for t in ticks)  # $: a number's mathtext
+            if not any(label.strip() if named else _UNIT.search(label) for label in labels):
                 title = ax.get_title() or (fig._suptitle.get_text() if fig._suptitle else "untitled")
                 missing.append(f"{title!r}: {which} ({(ax.get_xlabel() if which == 'x' else ax.get_ylabel())!r})")
     return missing

@@ -7,7 +7,7 @@ import pytest
 from calibration.data.errors import InputError
 from railcal.report.criteria import DEFAULTS, Criterion, evaluate, load_criteria, values_at, verdict
 
-RESULTS = {"calibration": {"max_error_pct": 1.2},
+RESULTS = {"identification": {"kind": "in_service"}, "calibration": {"max_error_pct": 1.2},
            "validation": {"channels": {"a": {"nrmse": 0.2, "psd_log_error_db": 0.5},
                                        "b": {"nrmse": 0.7, "psd_log_error_db": 1.0}},
                           "ride_comfort": {"front": {"x_m": 8.0, "model": {"n_mv_z": 0.5}, "measured": {"n_mv_z": 0.55}},
@@ -34,6 +34,19 @@ def test_the_defaults_pass_fail_or_say_why_they_were_not_evaluated():
     cross = rows["exudyn cross-check of the calibrated model"]
     assert cross["status"] == "not evaluated" and "no crosscheck result" in cross["why"]
     assert verdict(list(rows.values())).startswith("Not accepted: 1 of 7 criteria failed (NRMSE")
+    assert "FRAC of every floor FRF" not in rows  # an excitation test's criterion
+
+
+def test_an_excitation_test_is_judged_on_its_frfs_not_on_the_in_service_criteria():
+    results = {"identification": {"kind": "stationary_excitation"}, "calibration": {"max_error_pct": 0.1},
+               "validation": {"channels": {"acc_1": {"frac": 0.95, "log_error_db": 1.0},
+                                           "acc_2": {"frac": 0.85, "log_error_db": 3.5}}}}
+    rows = {r["name"]: r for r in evaluate(DEFAULTS, results)}
+    assert "NRMSE of every validated channel" not in rows and "floor comfort, model over measured N_MV,z" not in rows
+    assert [v["pass"] for v in rows["FRAC of every floor FRF"]["values"]] == [True, False]
+    assert rows["log-magnitude error of every floor FRF"]["status"] == "fail"
+    # without a kind in the results, every criterion is listed
+    assert len(evaluate(DEFAULTS, {"calibration": {"max_error_pct": 0.1}})) == len(DEFAULTS)
 
 
 def test_the_verdict_counts_what_was_not_evaluated():
@@ -65,6 +78,8 @@ def test_a_criteria_file_is_read(tmp_path):
     ('[[criterion]]\nname = "a"\nresult = "calibration"\nvalue = "x"\nat_most = "low"\n', "criterion[0].at_most",
      "finite number"),
     ('[[criterion]]\nresult = "calibration"\nvalue = "x"\nat_most = 1\n', "criterion[0].name", "needs name"),
+    ('[[criterion]]\nname = "a"\nresult = "calibration"\nvalue = "x"\nat_most = 1\nkind = "shaker"\n',
+     "criterion[0].kind", "in_service, stationary_excitation"),
 ])
 def test_a_malformed_criteria_file_is_refused_naming_the_key(tmp_path, body, key, message):
     f = tmp_path / "c.toml"

@@ -1,4 +1,6 @@
 """``railcal demo``'s settings and plumbing, without running the demo (it takes minutes)."""
+import json
+
 import numpy as np
 import pytest
 
@@ -10,27 +12,37 @@ from conftest import COARSE_BOX_ORDERS
 
 
 def test_full_keeps_the_published_sizes():
-    """--full: the seed's 1000 particles stopping at 0.5 %, 10 journeys over 40 km and the
-    full-order box model, as the DemoSettings docstring says."""
+    """--full: 10 journeys over 40 km and the full-order box model, calibrated with
+    `railcal calibrate`'s own defaults (the seed's 1000 particles, stopping at 0.5 %)."""
     f = demo.FULL
     assert (f.in_service.journeys, f.in_service.line.length) == (10, 40_000.0)
-    assert (f.box_pso.particles, f.box_pso.target) == (1000, 0.5)
     assert f.box_order_change == 0 and f.excitation.order_change == 0
-    assert f.box_refine_tol_pct == 1e-4
+    assert f.run_options() == {"calibrate": ("--panel-order-change", "0")}
 
 
-def test_quick_is_smaller_and_coarse():
+def test_quick_is_smaller_and_coarse_throughout():
+    """The quick demo's excitation test is synthesised and calibrated on the same coarse
+    model (the calibration file records it, so every later step rebuilds it)."""
     q = demo.QUICK
     assert q.in_service.journeys * q.in_service.line.length < demo.FULL.in_service.journeys * \
         demo.FULL.in_service.line.length
-    assert q.box_pso.particles < demo.FULL.box_pso.particles
     assert q.box_order_change < 0 and q.excitation.order_change == q.box_order_change
+    options = q.run_options()["calibrate"]
+    assert options[:2] == ("--panel-order-change", str(q.box_order_change))
+    assert int(options[options.index("--particles") + 1]) < 1000
 
 
 def test_settings_refuse_a_panel_order_below_one():
     with pytest.raises(ValueError, match="panel order below 1"):
-        demo.DemoSettings(demo.QUICK.in_service, car_runs=1, box_pso=demo.QUICK.box_pso, box_swarms=1,
-                          box_order_change=-100)
+        demo.DemoSettings(demo.QUICK.in_service, box_order_change=-100)
+
+
+def test_a_missing_result_fails_its_check_and_names_it(tmp_path):
+    for kind, name in demo.CAMPAIGNS.items():
+        (tmp_path / f"{name}.truth.json").write_text(json.dumps({"frequencies_hz": {"carbody_bounce": 0.9}}))
+    checks = demo.demo_checks(tmp_path)
+    assert checks and not any(held for _, held in checks)
+    assert any("carbody_bounce identified" in text for text, _ in checks)
 
 
 @pytest.mark.parametrize("flags, full", [([], False), (["--full"], True)])
@@ -73,13 +85,3 @@ def test_calibration_file_rebuilds_the_coarse_model_it_was_calibrated_on():
 def test_calibration_file_refuses_a_bad_order_change(bad):
     with pytest.raises(InputError, match="order_change"):
         calibrated_box_model({"model": "box", "parameters": {}, "order_change": bad})
-
-
-def test_a_mode_without_damping_gets_a_dash():
-    assert demo._damping(None) == "—" and demo._damping(0.0123) == "0.012"
-
-
-def test_wall_times_are_the_steps_differences():
-    text = demo._walls_report({"1/11 synthesising": 100.0, "2/11 identifying": 130.0, "end": 175.5}, demo.QUICK)
-    assert "| 1/11 synthesising | 30 |" in text and "| 2/11 identifying | 46 |" in text
-    assert "76 s in all" in text and "`railcal demo`" in text

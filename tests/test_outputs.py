@@ -162,6 +162,7 @@ def test_json_and_figures_get_the_umask_permissions_not_0600(tmp_path, umask_022
     assert stat.S_IMODE(os.stat(j).st_mode) == 0o644
     fig, ax = plt.subplots()
     ax.plot([0, 1], [0, 1])
+    ax.set(xlabel="time [s]", ylabel="level [m]")
     png = save_figure(fig, tmp_path / "p.png")
     assert stat.S_IMODE(os.stat(png).st_mode) == 0o644
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

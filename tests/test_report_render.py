@@ -13,7 +13,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from conftest import axes_without_units  # noqa: E402
-from railcal.report.render import chromium, data_uri, html_screenshot, html_to_pdf, pdf_available, pdf_page_png  # noqa: E402,E501
+from railcal.report.render import (chromium, data_uri, html_screenshot, html_to_pdf, pdf_available,  # noqa: E402
+                                   pdf_page_png)
 
 WHY_NOT = pdf_available()
 
@@ -85,4 +86,11 @@ def test_an_axis_without_a_unit_is_named_and_a_shared_one_is_labelled_once():
     assert axes_without_units(fig) == ["'untitled': y ('acceleration')"]
     axes[1, 0].set_xlabel("frequency")
     assert "'top left': x ('')" in axes_without_units(fig)
+    plt.close(fig)
+    fig, ax = plt.subplots()  # an axis of names (a MAC matrix's modes) has no unit, but a label
+    ax.imshow(np.eye(2))
+    ax.set_xticks(range(2), ["bounce", "pitch"])
+    ax.set_yticks(range(2), ["bounce", "pitch"])
+    ax.set_ylabel("identified mode")
+    assert axes_without_units(fig) == ["'untitled': x ('')"]
     plt.close(fig)

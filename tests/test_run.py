@@ -9,6 +9,7 @@ import pytest
 
 from calibration.data.campaign import open_campaign
 from railcal.cli import main
+from railcal.report.build import number
 from railcal.report.render import pdf_available
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
@@ -112,3 +113,57 @@ def test_a_step_that_fails_now_leaves_no_result_of_an_earlier_run(campaign, tmp_
     shutil.rmtree(copy / "track")
     assert main(["run", str(copy), "--out", str(out), "--quiet", "--no-pdf"]) == 0
     assert _record(out)["validate"]["status"] == "failed" and not (out / "validation.json").exists()
+
+
+def _write_by_hand(source, root):
+    """``source``'s measurements as a person would write a campaign from the format's page
+    (docs/campaign-format.md), with no railcal writer: campaign.toml as text, SI units where
+    the generator wrote g and deg/s, the sensors and columns in another order, comment lines,
+    and no truth file anywhere."""
+    c = open_campaign(source)
+    meta = c.meta
+    unit = {"acceleration": "m/s^2", "angular_velocity": "rad/s"}
+    sensors = sorted(meta.sensors, key=lambda s: s.name, reverse=True)
+    toml = ['format = "railcal-campaign/1"', 'kind = "in_service"', 'name = "hand-written test campaign"', "",
+            "[vehicle]", 'name = "test car"']
+    toml += [f"{k} = {v!r}" for k, v in meta.geometry.items()]
+    for name, p in meta.priors.items():
+        toml += ["", f"[priors.{name}]", f"nominal = {p.nominal!r}", f"low = {p.low!r}", f"high = {p.high!r}"]
+    for s in sensors:
+        toml += ["", "[[sensors]]", f'name = "{s.name}"', f'quantity = "{s.quantity}"', f'unit = "{unit[s.quantity]}"',
+                 f'body = "{s.body}"', f'direction = "{s.direction}"', f"position = {list(s.position)!r}"]
+    toml += ["", "[sampling]", f"rate = {meta.sampling_rate!r}", ""]
+    (root / "runs").mkdir(parents=True)
+    (root / "campaign.toml").write_text("\n".join(toml))
+    for run in c.iter_runs():
+        columns = ["time", "speed", "distance", *(s.name for s in sensors)]
+        values = [run.time, run.speed, run.distance, *(run.channels[s.name] for s in sensors)]
+        with open(root / "runs" / f"{run.run_id}.csv", "w") as f:
+            f.write(f"# {run.run_id}, written by hand\n{','.join(columns)}\n")
+            for row in zip(*values):
+                f.write(",".join(f"{x:.10g}" for x in row) + "\n")
+    (root / "track").mkdir()
+    for track in c.tracks():
+        rows = "".join(f"{d:.6f},{z:.6e}\n" for d, z in zip(track.distance, track.level))
+        (root / "track" / f"{track.name}.csv").write_text(f'# band = "{track.band}"\ndistance,level\n{rows}')
+
+
+@pytest.mark.slow(seconds=40)
+def test_a_campaign_written_by_hand_runs_to_its_report(campaign, tmp_path, capsys):
+    hand = tmp_path / "hand"
+    _write_by_hand(campaign, hand)
+    out = tmp_path / "results"
+    assert main(["run", str(hand), "--out", str(out), "--quiet", "--no-pdf"]) == 0, capsys.readouterr().err
+    record = _record(out)
+    assert all(s["status"] == "done" for s in record.values()), record
+    assert not list(tmp_path.rglob("*truth*"))
+    # the same measurements in other units and another layout: the same modes
+    assert main(["identify", str(campaign), "--out", str(tmp_path / "generated.json"), "--quiet"]) == 0
+    generated = {m["label"]: m["frequency_hz"] for m in json.loads((tmp_path / "generated.json").read_text())["modes"]}
+    ident = json.loads((out / "identification.json").read_text())
+    assert {m["label"] for m in ident["modes"]} == set(generated)
+    for m in ident["modes"]:
+        assert m["frequency_hz"] == pytest.approx(generated[m["label"]], rel=1e-5), m["label"]
+    html = (out / "report.html").read_text()
+    assert number(ident["modes"][0]["frequency_hz"]) in html
+    assert "accepted" in html.lower()  # a verdict, whichever it is

@@ -415,11 +415,10 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     modes, undetermined = unpaired_carbody(modes, undetermined)
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
     undetermined.sort(key=lambda u: RIGID_LABELS.index(u.label))
-
     rejected = _rejected(peaks, fdd, modes, lines)
+    psd = collector.psd_by_speed(units={s.name: SI_UNIT[s.quantity] for s in meta.sensors})
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
-                                   frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs),
-                                   collector.psd_by_speed(units={s.name: SI_UNIT[s.quantity] for s in meta.sensors}),
+                                   frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs), psd,
                                    tuple(undetermined))
 
 

@@ -124,7 +124,7 @@ def plot_stabilisation(stab: Stabilisation, frequency: np.ndarray, H: np.ndarray
         ax.axvline(m.frequency_hz, color="k", lw=0.8, ls="--")
     ax.set_xlim(stab.band)
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("model order")
+    ax.set_ylabel("model order [-]")
     ax.legend(fontsize=8, loc="upper left")
     ax2 = ax.twinx()
     ax2.plot(f, 10 * np.log10(np.maximum(np.sum(np.abs(Hb) ** 2, axis=1), np.finfo(float).tiny)), color="k", lw=1)
@@ -135,9 +135,11 @@ def plot_stabilisation(stab: Stabilisation, frequency: np.ndarray, H: np.ndarray
     return save_figure(fig, path)
 
 
-def plot_mac(matrix: np.ndarray, labels_a: Sequence[str], labels_b: Sequence[str], path):
-    """MAC matrix as a grey-scale image with the values written in; rows ``labels_a``,
-    columns ``labels_b``. Written atomically to ``path``."""
+def plot_mac(matrix: np.ndarray, labels_a: Sequence[str], labels_b: Sequence[str], path, *,
+             y_name: str = "identified mode", x_name: str = "identified mode"):
+    """MAC matrix as a grey-scale image with the values written in; rows ``labels_a``
+    (the modes ``y_name`` says), columns ``labels_b`` (``x_name``). Written atomically to
+    ``path``."""
     matrix = np.asarray(matrix, float)
     if matrix.shape != (len(labels_a), len(labels_b)):
         raise ValueError(f"MAC matrix {matrix.shape} does not match {len(labels_a)} x {len(labels_b)} labels")
@@ -147,6 +149,8 @@ def plot_mac(matrix: np.ndarray, labels_a: Sequence[str], labels_b: Sequence[str
         ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7, color="w" if v > 0.5 else "k")
     ax.set_xticks(range(len(labels_b)), labels_b, rotation=45, ha="right", fontsize=8)
     ax.set_yticks(range(len(labels_a)), labels_a, fontsize=8)
+    ax.set_xlabel(x_name, fontsize=8)
+    ax.set_ylabel(y_name, fontsize=8)
     ax.set_title("MAC")
     fig.tight_layout()
     return save_figure(fig, path)

@@ -59,7 +59,7 @@ from ..models.box.assembly import carbody_mass
 from ..models.box.modal import ModalModel, ModalSettings, modal_model
 from ..models.box.panel import Panel
 from ..models.box.rig import EXCITER, GEOMETRY, SENSOR_GRID
-from ..models.box.shinkansen import ORDERS, floor_panel, shinkansen_model
+from ..models.box.shinkansen import LOWEST_ORDER_CHANGE, floor_panel, shinkansen_model
 from ..signals.modal import mac_matrix
 from ..models.simulate import ModalSimulator
 from .effects import EffectChoice
@@ -116,7 +116,7 @@ class ExcitationSettings:
             a, b = getattr(self, name)
             if not 0 <= a < b:
                 raise ValueError(f"{name} = {(a, b)} must satisfy 0 <= low < high")
-        if self.order_change < 1 - min(min(o) for o in ORDERS.values()):
+        if self.order_change < LOWEST_ORDER_CHANGE:
             raise ValueError(f"order_change = {self.order_change} would leave a panel order below 1")
 
     @property

@@ -83,7 +83,8 @@ def html_screenshot(html, out, *, width: int = 1100, height: int = 1500) -> Path
     shows them, at ``out`` (PNG): the page as a person opening it sees it first."""
     browser = chromium()
     if browser is None:
-        raise RuntimeError("Chromium is not installed (Debian package chromium); run scripts/install_system_packages.sh")
+        raise RuntimeError("Chromium is not installed (Debian package chromium); "
+                           "run scripts/install_system_packages.sh")
     out = Path(out)
     with tempfile.TemporaryDirectory() as profile:
         subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",

@@ -42,8 +42,8 @@ def _frf(result: ExcitationDiagnosis, path: Path, channels: int) -> Path:
         ax.axis("off")
     for ax in axes[-1]:
         ax.set_xlabel("frequency [Hz]")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("|a / F| [(m/s^2)/N]")
+    for ax in axes.ravel()[:len(order)]:  # each panel its own scale: each channel its own level
+        ax.set_ylabel("|a / F| [(m/s^2)/N]", fontsize=8)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle(f"held-out FRFs, exciter force to floor accelerations; cause: {result.cause}", fontsize=10)
     fig.tight_layout()
@@ -66,7 +66,8 @@ def _mac(result: ExcitationDiagnosis, path: Path) -> Path:
                 ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=6, color="w" if v > 0.5 else "k")
         ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=7)
         ax.set_yticks(range(len(rows)), rows, fontsize=7)
-        ax.set_xlabel("model modes")
+        ax.set_xlabel("model mode")
+        ax.set_ylabel("identified mode")
         ax.set_title(f"MAC, identified (training) x {title}", fontsize=9)
     fig.tight_layout()
     return save_figure(fig, path)

@@ -80,6 +80,8 @@ ORDERS = {  # Legendre orders (along e1, along e2) per panel: first 12 elastic m
     "floor_front": (14, 8), "floor_middle": (15, 8), "floor_rear": (14, 8),
     "end_front": (5, 5), "end_rear": (5, 5),
 }
+#: the lowest order change a model can take: every panel keeps an order of 1 or more
+LOWEST_ORDER_CHANGE = 1 - min(min(o) for o in ORDERS.values())
 BOGIE = dict(mass=2500.0, inertia=(1200.0, 1800.0, 2500.0))
 SUSPENSION = {  # per element; [N/m] and [N s/m] along x, y, z; seat size on the floor [m]
     "axle_box": dict(k=(1.0e7, 4.0e6, 1.2e6), c=(0.0, 0.0, 1.5e4)),
@@ -434,9 +436,8 @@ def calibrated_box_model(calibration: dict):
     if bad:
         raise InputError(f"box parameter(s) {', '.join(bad)} must be positive numbers", key="parameters")
     order_change = calibration.get("order_change", 0)
-    lowest = 1 - min(min(o) for o in ORDERS.values())
-    if isinstance(order_change, bool) or not isinstance(order_change, int) or order_change < lowest:
-        raise InputError(f"'order_change' must be an integer >= {lowest} (every panel order >= 1), got "
+    if isinstance(order_change, bool) or not isinstance(order_change, int) or order_change < LOWEST_ORDER_CHANGE:
+        raise InputError(f"'order_change' must be an integer >= {LOWEST_ORDER_CHANGE} (every panel order >= 1), got "
                          f"{order_change!r}", key="order_change")
     values = {n: float(params.get(n, 1.0)) for n in factors.names}
     indefinite = indefinite_plates(values, values)
