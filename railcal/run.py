@@ -188,6 +188,9 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
             if step.needed:
                 stopped = step.name
                 break
+    record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign_sha,
+              "model": model, "stopped_at": stopped, "steps": steps, "provenance": provenance([], argv=None)}
+    write_json_atomic(record_path, record)  # the report shows how its results were made: the steps so far
     why_no_pdf = pdf_available() if pdf else "not asked for"
     try:
         html, made_pdf, reported = write_report(out, pdf=why_no_pdf is None, criteria_path=criteria_path)
@@ -197,8 +200,6 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
                                                                             f" (no PDF: {why_no_pdf})"))
     except InputError as e:
         steps.append({"name": "report", "status": "failed", "reason": str(e)})
-    record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign_sha,
-              "model": model, "stopped_at": stopped, "steps": steps, "provenance": provenance([], argv=None)}
     write_json_atomic(record_path, record)
     previous_log = log_path.read_text() if log_path.is_file() else ""
     write_atomic(log_path, lambda fh: fh.write((previous_log + "".join(f"{line}\n" for line in log)).encode()))

@@ -63,6 +63,8 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     assert third["crosscheck extended"]["reason"] == "the diagnosis found none"
     assert not (out / "fmu" / "extended.fmu").exists() and not (out / "crosscheck_extended.json").exists()
     assert "skipped export-fmu extended,crosscheck extended: the diagnosis found none" in capsys.readouterr().out
+    html = (out / "report.html").read_text()  # the report says how its results were made, and what was left out
+    assert "How the results were made" in html and "Step crosscheck extended skipped: the diagnosis found none." in html
 
 
 def test_a_diagnosis_without_an_extended_model_plans_no_extended_fmu(campaign, tmp_path):
