@@ -10,6 +10,7 @@ import pytest
 from calibration.data.campaign import open_campaign
 from railcal.cli import main
 from railcal.report.build import number
+from test_report import _at, _Cells
 from railcal.report.render import pdf_available
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
@@ -45,6 +46,13 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     assert "calibrate" in (out / "run.log").read_text()
     # calibrate reads the identification made before it, never identifies again
     assert "--identification" in record["calibrate"]["command"]
+    # every number in the report's tables is its result's, the cross-checks' and the data's included
+    parser = _Cells()
+    parser.feed((out / "report.html").read_text())
+    assert {path.split("/")[0] for path, _ in parser.cells} == {
+        "identification", "calibration", "validation", "diagnosis", "crosscheck", "crosscheck_extended"}
+    for path, text in parser.cells:
+        assert any(text == number(_at(out, path), digits) for digits in range(1, 13)), (path, text)
 
     # a second run keeps every step; a removed result is made again, and what reads it
     (out / "validation.json").unlink()

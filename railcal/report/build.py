@@ -30,10 +30,13 @@ RESULTS = {"identification": ("identification.json", "identification"),
 
 
 def number(x, digits: int = 4) -> str:
-    """A number as the report shows it: ``digits`` significant figures; '-' for none."""
+    """A number as the report shows it: ``digits`` significant figures (an integer whole);
+    '-' for none."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
     if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return str(x)
+    if isinstance(x, int):
         return str(x)
     return f"{x:.{digits}g}"
 
