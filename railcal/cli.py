@@ -179,7 +179,7 @@ def cmd_export_fmu(args) -> int:
     from fmu_src.build import BuildError
     from fmu_src.export import export_fmu
 
-    check_outputs([args.out], inputs=[args.calibration, args.track, args.campaign])
+    check_outputs([args.out, args.check], inputs=[args.calibration, args.track, args.campaign])
     calibration = read_calibration(args.calibration)
     model = model_of_calibration(calibration, args.calibration)
     campaign = campaign_of(args) if args.campaign else None
@@ -192,8 +192,18 @@ def cmd_export_fmu(args) -> int:
     except BuildError as e:
         print(f"railcal: cannot build the FMU: {e}", file=sys.stderr)
         return EXIT_INTERNAL
+    checked = ""
+    if args.check:
+        from fmu_src.checks import check_fmu
+
+        record = check_fmu(built.path)
+        write_result(args.check, record, "fmu-check")
+        agree = record.get("fmpy_vs_libcosim")
+        checked = (f"; checks {record['verdict']} (fmpy validate, fmutool"
+                   + (f", fmpy vs libcosim {agree['worst']:.1e}" if agree and agree["worst"] is not None else "")
+                   + f"), wrote {args.check}")
     print(f"FMI {built.fmi_version} co-simulation FMU with binaries for {', '.join(built.platforms)}"
-          f"{' and a stand-alone track' if args.track else ''}: wrote {built.path}")
+          f"{' and a stand-alone track' if args.track else ''}: wrote {built.path}{checked}")
     return EXIT_OK
 
 
@@ -391,6 +401,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cutoff-hz", type=float, default=None,
                    help="box model: carbody modes kept below this [Hz] (default: 100), the rest statically corrected")
     s.add_argument("--out", required=True, help="the .fmu to write")
+    s.add_argument("--check", default=None, metavar="F.json",
+                   help="also check the FMU built (fmpy's validation, fmutool's checks, the same run in fmpy and "
+                        "libcosim) and write the record to F.json (default: none)")
     _finish(s, cmd_export_fmu, reads_campaign=True)
 
     s = sub.add_parser("crosscheck", help="exudyn re-computation against railcal's model and its FMU")

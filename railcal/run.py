@@ -84,7 +84,7 @@ def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[S
     options = options or {}
     root = str(campaign.root)
     f = {name: out / f"{name}.json" for name in ("identification", "calibration", "validation", "diagnosis",
-                                                 "crosscheck", "crosscheck_extended")}
+                                                 "crosscheck", "crosscheck_extended", "fmu_baseline", "fmu_extended")}
     track = [str(sorted(campaign.track_paths)[0])] if campaign.track_paths else []
     calibrate = ["calibrate", root, "--identification", str(f["identification"]), "--model", model, "--refine"]
     if model == "box":
@@ -102,8 +102,8 @@ def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[S
     for which, source in (("baseline", f["calibration"]), ("extended", f["diagnosis"])):
         extra = ["--track", *track] if track and model == "car2d" else []
         steps.append(Step(f"export-fmu {which}", ("export-fmu", "--calibration", str(source), *extra,
-                                                  "--out", str(fmu[which])),
-                          (source, *map(Path, track)), (fmu[which],), skip=skip[which]))
+                                                  "--out", str(fmu[which]), "--check", str(f[f"fmu_{which}"])),
+                          (source, *map(Path, track)), (fmu[which], f[f"fmu_{which}"]), skip=skip[which]))
     speed = f"{_speed(f['identification']):.6g}"
     for which, source, result in (("baseline", f["calibration"], f["crosscheck"]),
                                   ("extended", f["diagnosis"], f["crosscheck_extended"])):

@@ -33,7 +33,7 @@ def test_the_defaults_pass_fail_or_say_why_they_were_not_evaluated():
     assert not nrmse["values"][0]["derived"]
     cross = rows["exudyn cross-check of the calibrated model"]
     assert cross["status"] == "not evaluated" and "no crosscheck result" in cross["why"]
-    assert verdict(list(rows.values())).startswith("Not accepted: 1 of 7 criteria failed (NRMSE")
+    assert verdict(list(rows.values())).startswith("Not accepted: 1 of 9 criteria failed (NRMSE")
     assert "FRAC of every floor FRF" not in rows  # an excitation test's criterion
 
 

@@ -65,3 +65,28 @@ def test_fmutool_check_fails_a_model_description_with_a_duplicated_name(car_fmus
         f"1 semantic error(s) against the FMI-{version} standard."]
     assert re.fullmatch(r"-check: \d+ error\(s\) found\.", errors[-1])  # it counts its summary line too
 
+
+
+def test_the_fmu_check_record_passes_a_good_fmu_and_fails_a_broken_one(car_fmus, tmp_path):
+    """`export-fmu --check`'s record: fmpy's validation, fmutool's checks and the same run in
+    fmpy and libcosim (FMI 2) agree that the car FMU is sound, with outputs that moved; the
+    same FMU with a duplicated variable name fails."""
+    from fmu_src.checks import check_fmu
+
+    _, built = car_fmus
+    good = check_fmu(built[2].path)
+    assert good["verdict"] == "pass" and good["fmutool"]["pass"] and good["fmpy_validate"]["pass"]
+    agree = good["fmpy_vs_libcosim"]
+    assert agree["pass"] and agree["worst"] <= 1e-9 and min(agree["rms"].values()) > 0
+    assert {"z_rail_1", "dz_rail_4"} <= set(agree["inputs"]) and "speed" not in agree["inputs"]
+    assert {v["name"]: v["unit"] for v in good["variables"]}["carbody_acc_z"] == "m/s2"
+    assert "fmpy_vs_libcosim" not in check_fmu(built[3].path)  # libcosim loads FMI 1 and 2 only
+    broken = tmp_path / "broken.fmu"
+    with zipfile.ZipFile(built[2].path) as src, zipfile.ZipFile(broken, "w", zipfile.ZIP_DEFLATED) as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            dst.writestr(item, data.replace(b'name="m_b"', b'name="m_v"') if item.filename == "modelDescription.xml"
+                         else data)
+    bad = check_fmu(broken)
+    assert bad["verdict"] == "fail" and not bad["fmutool"]["pass"]
+    assert any("used by several variables" in p for p in bad["fmutool"]["problems"])

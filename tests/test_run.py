@@ -50,7 +50,9 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     parser = _Cells()
     parser.feed((out / "report.html").read_text())
     assert {path.split("/")[0] for path, _ in parser.cells} == {
-        "identification", "calibration", "validation", "diagnosis", "crosscheck", "crosscheck_extended"}
+        "identification", "calibration", "validation", "diagnosis", "crosscheck", "crosscheck_extended", "fmu_baseline",
+        "fmu_extended"}
+    assert json.loads((out / "fmu_baseline.json").read_text())["verdict"] == "pass"
     for path, text in parser.cells:
         assert any(text == number(_at(out, path), digits) for digits in range(1, 13)), (path, text)
 

@@ -26,7 +26,9 @@ RESULTS = {"identification": ("identification.json", "identification"),
            "validation": ("validation.json", "validation"),
            "diagnosis": ("diagnosis.json", "diagnosis"),
            "crosscheck": ("crosscheck.json", "crosscheck"),
-           "crosscheck_extended": ("crosscheck_extended.json", "crosscheck")}
+           "crosscheck_extended": ("crosscheck_extended.json", "crosscheck"),
+           "fmu_baseline": ("fmu_baseline.json", "fmu-check"),
+           "fmu_extended": ("fmu_extended.json", "fmu-check")}
 
 
 def number(x, digits: int = 4) -> str:
