@@ -124,6 +124,20 @@ class CalibrationResult:
                 "identifiability": self.identifiability, "refinement": self.refinement, "runs": self.runs}
 
 
+def _history(r) -> dict:
+    """A search's convergence for the figures: Cross-Entropy's sampling mean per generation, its
+    change C_g (the stopping measure) and the elite's best objective; a swarm's best objective
+    per iteration, each to 6 figures (a figure's precision, not the result's)."""
+    def six(v) -> float:
+        return float(f"{float(v):.6g}")
+
+    if hasattr(r, "generations"):
+        return {"mean": [[six(v) for v in h["mean"]] for h in r.history],
+                "change": [six(h["C_g"]) for h in r.history],
+                "best_objective": [six(h["elite_best"]) for h in r.history]}
+    return {"best_objective": [six(v) for v in r.history]}
+
+
 def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...], *, base: CarParameters = INTERCITY_TRAILER,
                   method: str = "ce", objective: str = "sse", runs: int = 10, seed: int = 0, settings=None,
                   sigma_f=0.005, refine_result: bool = False) -> CalibrationResult:
@@ -154,7 +168,8 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
         results.append({"run": k + 1, "parameters": dict(zip(names, map(float, x))),
                         "frequencies_hz": {lbl: float(F[lbl][0]) for lbl in targets},
                         "objective": float(evaluate(x[None, :])[0]),
-                        "iterations": int(getattr(r, "generations", getattr(r, "iterations", 0)))})
+                        "iterations": int(getattr(r, "generations", getattr(r, "iterations", 0))),
+                        "history": _history(r)})
     finite = [run for run in results if np.isfinite(run["objective"])]
     if not finite:
         raise InputError("no run found parameters with a finite objective: the targets or ranges give no "

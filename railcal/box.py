@@ -103,7 +103,10 @@ def calibrate(args) -> str:
     else:
         result = _calibrate_typed_targets(args, settings, swarms)
         out = result.to_json()
-    write_result(args.out, out, "calibration")
+    from calibration.convergence_plots import plot_convergence
+
+    png = plot_convergence(out, Path(args.out).with_suffix(".png"))
+    write_result(args.out, {**out, "plot": None if png is None else str(png)}, "calibration")
     pso = result.pso
     runs = pso.get("swarms", ())
     ends = ", ".join(f"{r['end_max_error_pct']:.3g} %" for r in runs)
@@ -113,7 +116,7 @@ def calibrate(args) -> str:
             f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
             f"{result.max_error_pct:.3g} % over {len(result.fit)} modes, MAC >= "
             f"{min(r['mac'] for r in result.fit):.3f}{unsound_note(result.fit)}; "
-            f"{result.identifiability['summary']}; wrote {args.out}")
+            f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
 
 
 def unsound_note(fit) -> str:
@@ -154,12 +157,13 @@ def validate(campaign, calibration: dict, args) -> str:
 
     result = compare_frf(campaign, calibration)
     png = result.plot(Path(args.out).with_suffix(".png"))
+    phase_png = result.plot_phase(png.with_name(png.stem + "_phase.png"))
     out = result.to_json()
-    out["plot"] = str(png)
+    out["plot"], out["plots"] = str(png), [phase_png.name]
     write_result(args.out, out, "validation")
     return (f"FRF from the exciter to {len(result.sensors)} accelerometers over {result.band[0]:g}-"
             f"{result.band[1]:g} Hz: FRAC median {out['frac_median']:.3f}, min {out['frac_min']:.3f}; "
-            f"log-magnitude error up to {result.log_error_db.max():.2f} dB rms; wrote {names(args.out, png)}")
+            f"log-magnitude error up to {result.log_error_db.max():.2f} dB rms; wrote {names(args.out, png, phase_png)}")
 
 
 def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tuple[dict, str]:

@@ -113,23 +113,33 @@ def calibrate(args) -> str:
                                            identified=identified, progress=progress_for(args))
         out = result.to_json()
         out["identified_modes"] = [m.to_json() for m in modes]
-        write_result(args.out, out, "calibration")
+        png = _with_convergence(out, args.out)
         n = len(result.targets)
         return (f"calibrated to {n} identified mode{'s' * (n != 1)} ({', '.join(result.targets)}): "
                 f"max error {result.max_error_pct:.3g} %; "
-                f"{result.identifiability['summary']}; wrote {args.out}")
+                f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
     targets = read_targets(args.targets)
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
     result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
                            seed=args.seed, refine_result=args.refine)
-    write_result(args.out, result.to_json(), "calibration")
+    png = _with_convergence(result.to_json(), args.out)
     refined = ""
     if result.refinement is not None:
         refined = (" after CasADi refinement" if result.refinement["improved"]
                    else " (refinement did not improve; global result kept)")
     within = "" if args.priors else " within the seed's Table 7 ranges (intercity trailer car)"
     return (f"{args.method} x {args.runs} runs{within}{refined}: max error {result.max_error_pct:.3g} %; "
-            f"{result.identifiability['summary']}; wrote {args.out}")
+            f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
+
+
+def _with_convergence(out: dict, path) -> Path | None:
+    """Write the calibration file ``out`` at ``path`` with its search's convergence figure
+    beside it (.png); returns the figure's path."""
+    from calibration.convergence_plots import plot_convergence
+
+    png = plot_convergence(out, Path(path).with_suffix(".png"))
+    write_result(path, {**out, "plot": None if png is None else str(png)}, "calibration")
+    return png
 
 
 def validate(campaign, calibration: dict, args) -> str:
@@ -140,8 +150,9 @@ def validate(campaign, calibration: dict, args) -> str:
     result = validate_runs(campaign, p, extras=extras(calibration, args.calibration), bogie_dx=bogie_dx,
                            gyro_gain=gyro_gain, progress=progress_for(args))
     png = result.plot(Path(args.out).with_suffix(".png"))
+    runs_png = result.plot_runs(png.with_name(png.stem + "_runs.png"))
     out = result.to_json()
-    out["plot"] = str(png)
+    out["plot"], out["plots"] = str(png), [runs_png.name]
     write_result(args.out, out, "validation")
     summary = "; ".join(f"{k}: NRMSE {v['nrmse']:.3f}, PSD {v['psd_log_error_db']:.2f} dB"
                         for k, v in out["channels"].items())
@@ -150,7 +161,7 @@ def validate(campaign, calibration: dict, args) -> str:
                         for pos, c in out["ride_comfort"].items())
     comfort = f"; ride comfort, the vertical part of N_MV over the recording: {comfort}" if comfort else ""
     return (f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-"
-            f"{result.band_m[1]:g} m): {summary}{comfort}; wrote {names(args.out, png)}")
+            f"{result.band_m[1]:g} m): {summary}{comfort}; wrote {names(args.out, png, runs_png)}")
 
 
 def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tuple[dict, str]:

@@ -121,7 +121,8 @@ def cmd_modes(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    check_outputs([args.out], inputs=[args.campaign, args.targets, args.priors, args.identification])
+    check_outputs([args.out, Path(args.out).with_suffix(".png")],
+                  inputs=[args.campaign, args.targets, args.priors, args.identification])
     model = model_named(args.model)
     if args.campaign is not None and args.priors is not None:
         raise InputError("a campaign brings its own [priors.NAME]; --priors goes with --targets", key="--priors")
@@ -143,9 +144,11 @@ def _model_for(campaign, calibration: dict, path):
 
 def cmd_validate(args) -> int:
     path = Path(args.calibration)
-    check_outputs([args.out, Path(args.out).with_suffix(".png")], inputs=[args.campaign, path])
-    calibration = read_calibration(path)
     campaign = campaign_of(args)
+    png = Path(args.out).with_suffix(".png")
+    figures = [png] + [png.with_name(png.stem + s + ".png") for s in model_for_campaign(campaign).validation_figures]
+    check_outputs([args.out, *figures], inputs=[args.campaign, path])
+    calibration = read_calibration(path)
     model = _model_for(campaign, calibration, path)
     with about_calibration(path):
         print(model.validate(campaign, calibration, args))

@@ -30,6 +30,7 @@ class VehicleModel:
     diagnose(campaign, progress, calibration=None, calibration_path=None) -> diagnosis : what
         the model gets wrong, from the user's calibration when given (a result object with
         ``cause``, ``summary``, ``to_json()`` and ``plot(stem)``).
+    validation_figures : the suffixes of the figures ``validate`` writes beside its first.
     diagnosis_figures : the suffixes of the figures ``plot`` writes beside the JSON.
     fmu_spec(calibration, track=, campaign=, cutoff_hz=) -> ModelSpec : the FMU's description.
     crosscheck(calibration, distance, level, args, png) -> (report, summary) : the exudyn
@@ -47,6 +48,7 @@ class VehicleModel:
     modes: Callable
     calibrate: Callable
     validate: Callable
+    validation_figures: tuple[str, ...]
     diagnose: Callable
     diagnosis_figures: tuple[str, ...]
     fmu_spec: Callable
@@ -97,13 +99,14 @@ MODELS: dict[str, VehicleModel] = {m.name: m for m in (
     VehicleModel(name="car2d", description="the 2D car: carbody, two bogies, four wheelsets (in-service seed)",
                  campaign_kind="in_service", identify=car2d.identify, identification_figure="_spectra",
                  modes=car2d.modes, calibrate=car2d.calibrate,
-                 validate=car2d.validate, diagnose=_diagnose_in_service,
+                 validate=car2d.validate, validation_figures=("_runs",), diagnose=_diagnose_in_service,
                  diagnosis_figures=("_residual_psd", "_speed_map"), fmu_spec=car2d_fmu_spec,
                  crosscheck=car2d.crosscheck, crosscheck_figure=True, example_calibration=_car_example),
     VehicleModel(name="box", description="the box-type vehicle: flexible carbody on its suspension (carbody seed)",
                  campaign_kind="stationary_excitation", identify=box.identify, identification_figure="_mac",
                  modes=box.modes,
-                 calibrate=box.calibrate, validate=box.validate, diagnose=_diagnose_excitation,
+                 calibrate=box.calibrate, validate=box.validate, validation_figures=("_phase",),
+                 diagnose=_diagnose_excitation,
                  diagnosis_figures=("_frf", "_mac"), fmu_spec=box_fmu_spec, crosscheck=box.crosscheck,
                  crosscheck_figure=False, example_calibration=_box_example),
 )}

@@ -84,7 +84,8 @@ def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[S
     options = options or {}
     root = str(campaign.root)
     f = {name: out / f"{name}.json" for name in ("identification", "calibration", "validation", "diagnosis",
-                                                 "crosscheck", "crosscheck_extended", "fmu_baseline", "fmu_extended")}
+                                                 "validation_extended", "crosscheck", "crosscheck_extended",
+                                                 "fmu_baseline", "fmu_extended")}
     track = [str(sorted(campaign.track_paths)[0])] if campaign.track_paths else []
     calibrate = ["calibrate", root, "--identification", str(f["identification"]), "--model", model, "--refine"]
     if model == "box":
@@ -98,7 +99,11 @@ def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[S
              Step("validate", ("validate", root, "--calibration", str(f["calibration"]), "--out", str(f["validation"])),
                   (campaign.root, f["calibration"]), (f["validation"],)),
              Step("diagnose", ("diagnose", root, "--calibration", str(f["calibration"]), "--out", str(f["diagnosis"])),
-                  (campaign.root, f["calibration"]), (f["diagnosis"],))]
+                  (campaign.root, f["calibration"]), (f["diagnosis"],)),
+             # the extended model over the same track and runs: its responses and its ride comfort
+             Step("validate extended", ("validate", root, "--calibration", str(f["diagnosis"]), "--out",
+                                        str(f["validation_extended"])),
+                  (campaign.root, f["diagnosis"]), (f["validation_extended"],), skip=skip["extended"])]
     for which, source in (("baseline", f["calibration"]), ("extended", f["diagnosis"])):
         extra = ["--track", *track] if track and model == "car2d" else []
         steps.append(Step(f"export-fmu {which}", ("export-fmu", "--calibration", str(source), *extra,

@@ -700,3 +700,20 @@ def test_an_identification_file_read_back_is_its_modes_and_bad_shapes_are_refuse
                    {"shape_real": [0, 0, 0], "shape_imag": [0, 0, 0]}):
         with pytest.raises(InputError, match=r"modes\[0\]"):
             IdentifiedShapes.from_json({**data, "modes": [{**data["modes"][0], **change}]})
+
+
+@pytest.mark.slow
+def test_the_model_at_the_truths_factors_matches_the_measured_frfs_and_nominal_does_not(shaker, tmp_path):
+    """The FRF comparison of `validate` (magnitude, phase, coherence): the box model with the
+    factors that made the test reproduces its FRFs' shapes; at nominal factors it does not."""
+    from calibration.validation.excitation import compare_frf
+
+    root, truth, _, ident = shaker
+    campaign = open_campaign(root)
+    at = {"model": "box", "order_change": COARSE_BOX_ORDERS, "fit": []}
+    true = compare_frf(campaign, {**at, "parameters": truth["parameters"]}, ident)
+    nominal = compare_frf(campaign, {**at, "parameters": {}}, ident)
+    assert np.median(true.frac) >= 0.95 and np.median(nominal.frac) < np.median(true.frac)
+    assert true.coherence.shape == true.measured.shape and np.median(true.coherence) > 0.9
+    png = true.plot_phase(tmp_path / "phase.png")
+    assert png.read_bytes()[:4] == b"\x89PNG"

@@ -15,8 +15,8 @@ from railcal.report.render import pdf_available
 from calibration.truth.in_service import InServiceSettings, synth_in_service
 from calibration.truth.track import LineSpec
 
-STEPS = ["identify", "calibrate", "validate", "diagnose", "export-fmu baseline", "export-fmu extended",
-         "crosscheck baseline", "crosscheck extended", "report"]
+STEPS = ["identify", "calibrate", "validate", "diagnose", "validate extended", "export-fmu baseline",
+         "export-fmu extended", "crosscheck baseline", "crosscheck extended", "report"]
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +35,7 @@ def _record(out):
 def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, capsys, monkeypatch):
     out = tmp_path / "results"
     assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
-    assert "9 steps done" in capsys.readouterr().out
+    assert "10 steps done" in capsys.readouterr().out
     record = _record(out)
     assert list(record) == STEPS and all(s["status"] == "done" for s in record.values()), record
     assert json.loads((out / "run.json").read_text())["stopped_at"] is None
@@ -50,8 +50,8 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     parser = _Cells()
     parser.feed((out / "report.html").read_text())
     assert {path.split("/")[0] for path, _ in parser.cells} == {
-        "identification", "calibration", "validation", "diagnosis", "crosscheck", "crosscheck_extended", "fmu_baseline",
-        "fmu_extended"}
+        "identification", "calibration", "validation", "diagnosis", "validation_extended", "crosscheck",
+        "crosscheck_extended", "fmu_baseline", "fmu_extended"}
     assert json.loads((out / "fmu_baseline.json").read_text())["verdict"] == "pass"
     for path, text in parser.cells:
         assert any(text == number(_at(out, path), digits) for digits in range(1, 13)), (path, text)
@@ -69,10 +69,12 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     capsys.readouterr()
     assert main(["run", str(campaign), "--out", str(out), "--quiet", "--no-pdf"]) == 0
     third = _record(out)
-    assert {n for n, s in third.items() if s["status"] == "skipped"} == {"export-fmu extended", "crosscheck extended"}
+    assert {n for n, s in third.items() if s["status"] == "skipped"} == {"validate extended", "export-fmu extended",
+                                                                          "crosscheck extended"}
     assert third["crosscheck extended"]["reason"] == "the diagnosis found none"
     assert not (out / "fmu" / "extended.fmu").exists() and not (out / "crosscheck_extended.json").exists()
-    assert "skipped export-fmu extended,crosscheck extended: the diagnosis found none" in capsys.readouterr().out
+    assert "skipped validate extended,export-fmu extended,crosscheck extended: the diagnosis found none" in \
+        capsys.readouterr().out
     html = (out / "report.html").read_text()  # the report says how its results were made, and what was left out
     assert "How the results were made" in html and "Step crosscheck extended skipped: the diagnosis found none." in html
 

@@ -35,6 +35,14 @@ class FRFComparison:
     frac: np.ndarray  # (n_s,)
     log_error_db: np.ndarray  # (n_s,) rms of 20 log10 |H_model / H_meas| over the band
     band: tuple[float, float]
+    coherence: np.ndarray | None = None  # (n_f, n_s) of the measured H1
+
+    def plot_phase(self, path, channels: int = 3):
+        """Magnitude, phase and coherence, measured and model, of the channels with the lowest,
+        the median and the highest FRAC, at ``path``."""
+        from .plots import plot_frf_phase
+
+        return plot_frf_phase(self, path, channels)
 
     def plot(self, path, channels: int = 9):
         """|H| measured and model for up to ``channels`` accelerometers at ``path``."""
@@ -76,4 +84,5 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentifi
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]
     Hm, Ha = ident.frf.H[sel], modal.frf(f)
-    return FRFComparison(ident.sensors, f, Hm, Ha, frac(Hm, Ha), log_error_db(Hm, Ha), (lo, hi))
+    return FRFComparison(ident.sensors, f, Hm, Ha, frac(Hm, Ha), log_error_db(Hm, Ha), (lo, hi),
+                         ident.frf.coherence[sel])

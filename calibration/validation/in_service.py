@@ -102,6 +102,12 @@ class ValidationResult:
 
         return plot_validation(self, path)
 
+    def plot_runs(self, path):
+        """Every run: measured against simulated, and the residual, of its first channel."""
+        from .plots import plot_every_run
+
+        return plot_every_run(self, path)
+
     def to_json(self) -> dict:
         return {"track": self.track, "band_m": list(self.band_m), "channels": self.summary(),
                 "skipped": [{"run": r, "channel": c, "reason": why} for r, c, why in self.skipped],

@@ -62,3 +62,58 @@ def plot_frf_comparison(cmp: FRFComparison, path, channels: int = 9) -> Path:
     fig.suptitle("FRF gain from the exciter force to the floor accelerations")
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+def plot_every_run(result: ValidationResult, path, window_m: float = 150.0) -> Path:
+    """One panel per run: its first channel measured and simulated, and their difference,
+    over ``window_m`` in the middle of the compared stretch (a whole run's waves would merge
+    into a band), with the run's speed and its NRMSE over the whole stretch."""
+    runs = result.runs
+    fig, axes = plt.subplots(len(runs), 1, figsize=(12, 1.9 * len(runs) + 0.6), squeeze=False)
+    for ax, r in zip(axes[:, 0], runs):
+        name = next(iter(r.measured))
+        unit = result.units.get(name, "SI")
+        comp = next(c for c in r.channels if c.channel == name)
+        mid = 0.5 * (r.distance[0] + r.distance[-1])
+        w = np.abs(r.distance - mid) <= window_m / 2
+        s, m, y = r.distance[w], r.measured[name][w], r.simulated[name][w]
+        ax.plot(s, m, lw=0.8, color="0.3", label="measured")
+        ax.plot(s, y, lw=0.8, color="tab:red", ls="--", label="simulated")
+        ax.plot(s, y - m, lw=0.7, color="tab:blue", label="simulated - measured")
+        ax.set_title(f"{r.run_id} at {r.mean_speed:.1f} m/s: {name}, NRMSE {comp.nrmse:.3f}", fontsize=8)
+        ax.set_ylabel(f"[{unit}]", fontsize=8)
+        ax.set_xlabel("distance along the track recording [m]", fontsize=7)
+        ax.tick_params(labelsize=7)
+    axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
+    fig.tight_layout()
+    fig.set_dpi(90)
+    return save_figure(fig, path)
+
+
+def plot_frf_phase(cmp: FRFComparison, path, channels: int = 3) -> Path:
+    """For the channels of lowest, median and highest FRAC: |H|, its phase and the measured
+    coherence, measured against model."""
+    order = np.argsort(cmp.frac)
+    picks = list(dict.fromkeys(order[np.linspace(0, len(order) - 1, min(channels, len(order))).round().astype(int)]))
+    fig, axes = plt.subplots(3, len(picks), figsize=(4 * len(picks), 7), sharex=True, squeeze=False)
+    for col, i in enumerate(picks):
+        top, mid, low = axes[:, col]
+        top.semilogy(cmp.frequency, np.abs(cmp.measured[:, i]), "k-", lw=1, label="measured (H1)")
+        top.semilogy(cmp.frequency, np.abs(cmp.model[:, i]), "r--", lw=1, label="calibrated model")
+        top.set_title(f"{cmp.sensors[i]}: FRAC {cmp.frac[i]:.3f}", fontsize=9)
+        top.set_ylabel("|a / F| [(m/s^2)/N]", fontsize=8)
+        mid.plot(cmp.frequency, np.degrees(np.angle(cmp.measured[:, i])), "k-", lw=1)
+        mid.plot(cmp.frequency, np.degrees(np.angle(cmp.model[:, i])), "r--", lw=1)
+        mid.set_ylabel("phase [deg]", fontsize=8)
+        mid.set_ylim(-180, 180)
+        if cmp.coherence is not None:
+            low.plot(cmp.frequency, cmp.coherence[:, i], "k-", lw=1)
+        low.set_ylim(0, 1.05)
+        low.set_ylabel("coherence [-]", fontsize=8)
+        low.set_xlabel("frequency [Hz]")
+        for ax in (top, mid, low):
+            ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("FRF from the exciter force: magnitude, phase and the measurement's coherence")
+    fig.tight_layout()
+    return save_figure(fig, path)
