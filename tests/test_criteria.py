@@ -56,6 +56,19 @@ def test_the_verdict_counts_what_was_not_evaluated():
     assert verdict(rows[:1]) == "Accepted: all 1 criteria met."
 
 
+def test_a_criterion_on_a_step_the_run_did_not_need_is_not_applicable_and_does_not_hold_the_verdict():
+    """The diagnosis found nothing: there is no extended model to cross-check, which is no
+    open question for the reviewer, but a result that is merely missing still is."""
+    rows = evaluate((Criterion("f", "calibration", "max_error_pct", at_most=3.0),
+                     Criterion("x", "crosscheck_extended", "verdict", one_of=("pass",)),
+                     Criterion("y", "crosscheck", "verdict", one_of=("pass",))), RESULTS,
+                    {"crosscheck_extended": "skipped: the diagnosis found none"})
+    assert [r["status"] for r in rows] == ["pass", "not applicable", "not evaluated"]
+    assert rows[1]["why"] == "skipped: the diagnosis found none"
+    assert verdict(rows) == "Accepted on the 1 criteria evaluated; 1 not evaluated (y). 1 not applicable (x)."
+    assert verdict(rows[:2]) == "Accepted: all 1 criteria met. 1 not applicable (x)."
+
+
 def test_a_criteria_file_is_read(tmp_path):
     f = tmp_path / "c.toml"
     f.write_text('[[criterion]]\nname = "fit"\nresult = "calibration"\nvalue = "max_error_pct"\nat_most = 1.0\n'

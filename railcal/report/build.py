@@ -32,6 +32,11 @@ RESULTS = {"identification": ("identification.json", "identification"),
            "fmu_extended": ("fmu_extended.json", "fmu-check")}
 
 
+#: `railcal run`'s step -> the result it writes (those a run may skip)
+RUN_STEP_RESULTS = {"validate extended": "validation_extended", "export-fmu extended": "fmu_extended",
+                    "crosscheck extended": "crosscheck_extended"}
+
+
 def number(x, digits: int = 4) -> str:
     """A number as the report shows it: ``digits`` significant figures (an integer whole);
     '-' for none."""
@@ -88,12 +93,15 @@ def build_html(folder, results: dict, *, title: str | None = None, criteria=None
     env.filters["n"] = number
     campaign = next((r["campaign"] for r in results.values() if isinstance(r.get("campaign"), str)), None)
     inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
-    acceptance = evaluate(DEFAULTS if criteria is None else criteria, results)
+    run = load_run(folder)
+    skipped = {RUN_STEP_RESULTS[s["name"]]: f"skipped: {s.get('reason')}" for s in (run or {}).get("steps", [])
+               if s.get("status") == "skipped" and s.get("name") in RUN_STEP_RESULTS}
+    acceptance = evaluate(DEFAULTS if criteria is None else criteria, results, skipped)
     return env.get_template("report.html.j2").render(
         title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
         acceptance=acceptance, verdict=verdict(acceptance), default_criteria=criteria is None,
         figures=_figures(folder, results), provenance=provenance(inputs, root=folder), steps=list(RESULTS),
-        kind=campaign_kind(results), run=load_run(folder))
+        kind=campaign_kind(results), run=run)
 
 
 def write_report(folder, *, pdf: bool = False, criteria_path=None) -> tuple[Path, Path | None, tuple]:

@@ -159,11 +159,13 @@ def campaign_kind(results: dict) -> str | None:
     return next((r["kind"] for r in results.values() if isinstance(r, dict) and r.get("kind") in KINDS), None)
 
 
-def evaluate(criteria, results: dict) -> list[dict]:
+def evaluate(criteria, results: dict, not_applicable: dict | None = None) -> list[dict]:
     """Each criterion's row: name, limit, the values it read (path, value, pass, and whether
-    it is derived from the results rather than in them), its status (``pass``, ``fail`` or
-    ``not evaluated``) and why when not evaluated. A criterion for another kind of campaign
-    than the results' has no row."""
+    it is derived from the results rather than in them), its status (``pass``, ``fail``,
+    ``not evaluated`` or ``not applicable``) and why when it is not judged. A criterion for
+    another kind of campaign than the results' has no row; one on a result in
+    ``not_applicable`` ({result: why}: a step the campaign's answers made needless, such as
+    the extended model's when the diagnosis found nothing) is not applicable."""
     raw, results = results, with_derived(results)
     kind = campaign_kind(results)
     rows = []
@@ -171,6 +173,9 @@ def evaluate(criteria, results: dict) -> list[dict]:
         if c.kind is not None and kind is not None and c.kind != kind:
             continue
         row = {"name": c.name, "result": c.result, "value": c.value, "limit": c.limit(), "values": []}
+        if c.result not in results and c.result in (not_applicable or {}):
+            rows.append({**row, "status": "not applicable", "why": not_applicable[c.result]})
+            continue
         if c.result not in results:
             rows.append({**row, "status": "not evaluated", "why": f"no {c.result} result"})
             continue
@@ -186,11 +191,14 @@ def evaluate(criteria, results: dict) -> list[dict]:
 
 def verdict(rows) -> str:
     """The report's summary verdict from the criteria's rows."""
+    idle = [r["name"] for r in rows if r["status"] == "not applicable"]
+    rows = [r for r in rows if r["status"] != "not applicable"]
     failed = [r["name"] for r in rows if r["status"] == "fail"]
     open_ = [r["name"] for r in rows if r["status"] == "not evaluated"]
+    aside = f" {len(idle)} not applicable ({'; '.join(idle)})." if idle else ""
     if failed:
-        return f"Not accepted: {len(failed)} of {len(rows)} criteria failed ({'; '.join(failed)})."
+        return f"Not accepted: {len(failed)} of {len(rows)} criteria failed ({'; '.join(failed)}).{aside}"
     if open_:
         return (f"Accepted on the {len(rows) - len(open_)} criteria evaluated; {len(open_)} not evaluated "
-                f"({'; '.join(open_)}).")
-    return f"Accepted: all {len(rows)} criteria met."
+                f"({'; '.join(open_)}).{aside}")
+    return f"Accepted: all {len(rows)} criteria met.{aside}"
