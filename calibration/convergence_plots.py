@@ -14,13 +14,29 @@ from .data.outputs import save_figure
 
 def plot_convergence(calibration: dict, path) -> Path | None:
     """The search's convergence figure at ``path``; None when the result holds no history."""
-    runs = [r for r in calibration.get("runs") or [] if r.get("history", {}).get("mean")]
-    if runs:
+    runs = [r for r in calibration.get("runs") or [] if r.get("history", {}).get("best_objective")]
+    if runs and all(r["history"].get("mean") for r in runs):
         return _cross_entropy(calibration, runs, path)
+    if runs:
+        return _best_per_iteration(runs, path)
     history = (calibration.get("pso") or {}).get("history_pct")
     if history:
         return _swarm(calibration, history, path)
     return None
+
+
+def _best_per_iteration(runs: list, path) -> Path:
+    """The car's swarm runs: each one's best objective per iteration."""
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for r in runs:
+        best = np.maximum(r["history"]["best_objective"], 1e-300)
+        ax.semilogy(np.arange(len(best)), best, lw=0.8, alpha=0.7)
+    ax.set_xlabel("iteration [-]")
+    ax.set_ylabel("best objective [-]")
+    ax.set_title(f"particle swarm: {len(runs)} runs, each one's best objective", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    return save_figure(fig, path)
 
 
 def _cross_entropy(calibration: dict, runs: list, path) -> Path:
@@ -55,10 +71,12 @@ def _swarm(calibration: dict, history: list, path) -> Path:
     fig, ax = plt.subplots(figsize=(9, 4))
     ax.semilogy(np.arange(len(history)), history, color="tab:blue", lw=1, label="best evaluation value")
     ax.axhline(pso.get("done_pct", pso.get("stop_pct")), color="k", ls="--", lw=0.8, label="done at")
-    ax.axhline(calibration["max_error_pct"], color="tab:red", ls=":", lw=1, label="after the refinement")
-    ax.set_xlabel("iteration (every swarm's, in turn) [-]")
+    if calibration.get("refinement"):
+        ax.axhline(calibration["max_error_pct"], color="tab:red", ls=":", lw=1, label="after the refinement")
+    ax.set_xlabel("iteration [-]")
     ax.set_ylabel("largest frequency error [%]")
-    ax.set_title(f"particle swarm: {pso['particles']} particles, {len(pso.get('swarms') or [1])} swarm(s)", fontsize=9)
+    ax.set_title(f"particle swarm: {pso['particles']} particles; the kept swarm's best value "
+                 f"({len(pso.get('swarms') or [1])} swarm(s) in all)", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()

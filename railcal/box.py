@@ -72,6 +72,9 @@ def calibrate(args) -> str:
     if swarms < 1 or args.particles // swarms < 2:
         raise InputError(f"--swarms {swarms} with --particles {args.particles}: each swarm needs 2 or more particles",
                          key="--swarms")
+    if args.campaign is None and args.panel_order_change:
+        raise InputError("--panel-order-change goes with a CAMPAIGN (typed targets are matched on the "
+                         "full-order model)", key="--panel-order-change")
     if args.campaign is not None:
         from calibration.models.box.shinkansen import LOWEST_ORDER_CHANGE
 
@@ -163,7 +166,8 @@ def validate(campaign, calibration: dict, args) -> str:
     write_result(args.out, out, "validation")
     return (f"FRF from the exciter to {len(result.sensors)} accelerometers over {result.band[0]:g}-"
             f"{result.band[1]:g} Hz: FRAC median {out['frac_median']:.3f}, min {out['frac_min']:.3f}; "
-            f"log-magnitude error up to {result.log_error_db.max():.2f} dB rms; wrote {names(args.out, png, phase_png)}")
+            f"log-magnitude error up to {result.log_error_db.max():.2f} dB rms; "
+            f"wrote {names(args.out, png, phase_png)}")
 
 
 def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tuple[dict, str]:

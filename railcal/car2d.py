@@ -99,6 +99,9 @@ def calibrate(args) -> str:
                          "with --priors P.toml ([NAME] nominal, low, high)", key="--priors")
     if args.runs < 1:
         raise InputError(f"--runs must be >= 1, got {args.runs}", key="--runs")
+    if args.panel_order_change:
+        raise InputError("--panel-order-change is the box model's; the 2D car has no panels",
+                         key="--panel-order-change")
     if (args.campaign is None) == (args.targets is None):
         raise InputError("give either a CAMPAIGN or --targets T.toml", key="CAMPAIGN / --targets")
     if args.campaign is not None:

@@ -232,6 +232,10 @@ def cmd_crosscheck(args) -> int:
 
 
 # ------------------------------------------------------------------------------- run
+def _joined(names) -> str:
+    return ",".join(names)
+
+
 def cmd_run(args) -> int:
     from railcal.run import run_campaign
 
@@ -248,7 +252,7 @@ def cmd_run(args) -> int:
             skipped.setdefault(s["reason"], []).append(s["name"])
     print(f"run of {campaign.root} with {model}: {len(done)} steps done"
           f"{'; not done: ' + '; '.join(failed) if failed else ''}"
-          f"{''.join(f'; skipped {chr(44).join(names)}: {why}' for why, names in skipped.items())}; wrote {args.out}")
+          f"{''.join(f'; skipped {_joined(names)}: {why}' for why, names in skipped.items())}; wrote {args.out}")
     return EXIT_INPUT if record["stopped_at"] else EXIT_OK
 
 

@@ -161,7 +161,8 @@ def _demo_md(out: Path, runs: dict, checks: list[tuple[str, bool]], demo: DemoSe
     ok = all(held for _, held in checks)
     lines = ["# railcal demo", "",
              f"{'Full' if demo is FULL else 'Quick'} demo (`railcal demo{' --full' if demo is FULL else ''}`), "
-             f"{wall_s:.0f} s in all. Two synthetic campaigns, each handed to `railcal run` as a user's would be:", ""]
+             f"{wall_s:.0f} s in all. Two synthetic campaigns, each through `railcal run`'s steps (the box run's "
+             f"calibrate with {' '.join(demo.run_options()['calibrate'])}):", ""]
     for kind, what in (("in_service", "in service (2D car)"), ("excitation", "stationary excitation test (box)")):
         folder = RESULTS[kind]
         lines.append(f"- {what}: campaign `{CAMPAIGNS[kind]}/`, results and sign-off report in `{folder}/` "

@@ -23,6 +23,8 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import jinja2
+
 from calibration.data.errors import InputError
 from calibration.data.outputs import check_outputs, write_atomic, write_json_atomic
 
@@ -41,7 +43,8 @@ class Step:
     inputs: tuple
     outputs: tuple
     needed: bool = False  # its failure stops the run
-    skip: str | None = None  # why it is not run on this campaign (its inputs say it cannot be)
+    skip: str | None = None  # why it is not run on this campaign (its inputs say it cannot or need not be)
+    needless: bool = False  # skipped because its answer is known (no extended model), not because it cannot be done
 
 
 def _content_key(step: Step, known: dict) -> str:
@@ -62,19 +65,22 @@ def _speed(identification: Path, default: float = 40.0) -> float:
         return default
 
 
-def _no_extended_model(diagnosis: Path) -> str | None:
-    """Why the diagnosis at ``diagnosis`` gives no extended model to export and cross-check,
-    or None when it gives one (or has not been made yet)."""
+def _no_extended_model(diagnosis: Path) -> tuple[str, bool] | None:
+    """Why the diagnosis at ``diagnosis`` gives no extended model to validate, export and
+    cross-check, and whether that is because there is none (True: the steps are needless) or
+    because railcal cannot carry it (False); None when it gives one (or is not made yet)."""
     try:
         d = json.loads(diagnosis.read_text())
     except (OSError, ValueError):
         return None
-    if not isinstance(d, dict) or "parameters" in d:
+    if not isinstance(d, dict):
         return None
-    if d.get("extension"):
-        return (f"the box-type FMU and its exudyn cross-check do not carry the diagnosis's extension "
-                f"({d['extension'].get('name')}) yet")
-    return f"the diagnosis found {d.get('cause')}: there is no extended model, the calibrated one stands"
+    if not d.get("extension") and not d.get("findings"):  # in service, findings are the causes and properties
+        return f"the diagnosis found {d.get('cause')}: there is no extended model, the calibrated one stands", True
+    if "parameters" not in d:
+        return (f"the box model's FRF comparison, FMU and exudyn cross-check do not carry the diagnosis's "
+                f"extension ({(d.get('extension') or {}).get('name')}) yet", False)
+    return None
 
 
 def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[Step]:
@@ -91,7 +97,9 @@ def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[S
     if model == "box":
         calibrate += ["--method", "pso"]
     fmu = {"baseline": out / "fmu" / "baseline.fmu", "extended": out / "fmu" / "extended.fmu"}
-    skip = {"baseline": None, "extended": _no_extended_model(f["diagnosis"])}
+    no_extended = _no_extended_model(f["diagnosis"])
+    skip = {"baseline": {}, "extended": {} if no_extended is None else
+            {"skip": no_extended[0], "needless": no_extended[1]}}
     steps = [Step("identify", ("identify", root, "--out", str(f["identification"])), (campaign.root,),
                   (f["identification"],), needed=True),
              Step("calibrate", tuple(calibrate + ["--out", str(f["calibration"])]),
@@ -103,19 +111,19 @@ def plan(campaign, out: Path, model: str, options: dict | None = None) -> list[S
              # the extended model over the same track and runs: its responses and its ride comfort
              Step("validate extended", ("validate", root, "--calibration", str(f["diagnosis"]), "--out",
                                         str(f["validation_extended"])),
-                  (campaign.root, f["diagnosis"]), (f["validation_extended"],), skip=skip["extended"])]
+                  (campaign.root, f["diagnosis"]), (f["validation_extended"],), **skip["extended"])]
     for which, source in (("baseline", f["calibration"]), ("extended", f["diagnosis"])):
         extra = ["--track", *track] if track and model == "car2d" else []
         steps.append(Step(f"export-fmu {which}", ("export-fmu", "--calibration", str(source), *extra,
                                                   "--out", str(fmu[which]), "--check", str(f[f"fmu_{which}"])),
-                          (source, *map(Path, track)), (fmu[which], f[f"fmu_{which}"]), skip=skip[which]))
+                          (source, *map(Path, track)), (fmu[which], f[f"fmu_{which}"]), **skip[which]))
     speed = f"{_speed(f['identification']):.6g}"
     for which, source, result in (("baseline", f["calibration"], f["crosscheck"]),
                                   ("extended", f["diagnosis"], f["crosscheck_extended"])):
         extra = ["--track", *track, "--speed", speed] if track and model == "car2d" else []
         steps.append(Step(f"crosscheck {which}", ("crosscheck", "--calibration", str(source), *extra,
                                                   "--out", str(result)),
-                          (source, *map(Path, track)), (result,), skip=skip[which]))
+                          (source, *map(Path, track)), (result,), **skip[which]))
     return [replace(s, argv=s.argv + tuple(options.get(s.name, ()))) for s in steps]
 
 
@@ -166,7 +174,7 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
             for o in step.outputs:  # an earlier run's result of it would describe another model
                 Path(o).unlink(missing_ok=True)
             steps.append({"name": step.name, "command": ["railcal", *step.argv], "key": key, "status": "skipped",
-                          "reason": step.skip})
+                          "reason": step.skip, "needless": step.needless})
             log.append(f"{step.name}: skipped, {step.skip}")
             say(f"[{i}/{len(planned) + 1}] {step.name}: skipped, {step.skip}")
             continue
@@ -193,18 +201,23 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
             if step.needed:
                 stopped = step.name
                 break
+    if stopped is not None:
+        steps += [{"name": s.name, "status": "not run", "reason": f"the run stopped at {stopped}"}
+                  for s in planned[len(steps):]]
     record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign_sha,
               "model": model, "stopped_at": stopped, "steps": steps, "provenance": provenance([], argv=None)}
     write_json_atomic(record_path, record)  # the report shows how its results were made: the steps so far
     why_no_pdf = pdf_available() if pdf else "not asked for"
+    for old in ("report.html", "report.pdf"):  # an earlier report shows earlier results: never left beside these
+        (out / old).unlink(missing_ok=True)
     try:
         html, made_pdf, reported = write_report(out, pdf=why_no_pdf is None, criteria_path=criteria_path)
         steps.append({"name": "report", "status": "done", "summary": f"{html}" + (f", {made_pdf}" if made_pdf else ""),
                       "reason": None if made_pdf else f"no PDF: {why_no_pdf}"})
         say(f"[{len(planned) + 1}/{len(planned) + 1}] report: {html}" + (f" and {made_pdf}" if made_pdf else
                                                                             f" (no PDF: {why_no_pdf})"))
-    except InputError as e:
-        steps.append({"name": "report", "status": "failed", "reason": str(e)})
+    except (InputError, jinja2.TemplateError) as e:  # a result the template cannot lay out: the steps stay
+        steps.append({"name": "report", "status": "failed", "reason": f"{type(e).__name__}: {e}"})
     write_json_atomic(record_path, record)
     previous_log = log_path.read_text() if log_path.is_file() else ""
     write_atomic(log_path, lambda fh: fh.write((previous_log + "".join(f"{line}\n" for line in log)).encode()))

@@ -27,5 +27,6 @@ if [ "$(id -u)" != 0 ]; then
     fi
 fi
 ($SUDO apt-get update -qq && $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null) \
-    || echo "warning: could not install ${need[*]}; win64 FMU binaries, PDF reports or the report's browser check may be unavailable" >&2
+    || echo "warning: could not install ${need[*]}; win64 FMU binaries, PDF reports or the" \
+            "report's browser check may be unavailable" >&2
 exit 0

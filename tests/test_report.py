@@ -73,8 +73,8 @@ def test_every_number_in_the_reports_tables_is_its_results(results, capsys):
     assert len(parser.cells) > 30
     steps = {path.split("/")[0] for path, _ in parser.cells}
     assert steps == {"identification", "calibration", "validation", "diagnosis"}
-    for path, text in parser.cells:  # the value itself, to the figures shown
-        assert any(text == number(_at(results, path), digits) for digits in range(1, 13)), (path, text)
+    for path, text in parser.cells:  # the value itself, to the figures shown (4, or 2 for tiny agreements)
+        assert any(text == number(_at(results, path), digits) for digits in (2, 4)), (path, text)
     # one file: every figure embedded, nothing fetched from elsewhere
     assert parser.links and all(link.startswith("data:image/") for link in parser.links)
     html = (results / "report.html").read_text()

@@ -167,7 +167,8 @@ class LineWindowCollector:
         classes = np.array_split(order, n_classes)
         P = np.stack([w.psd_si for w in self.windows])
         return ChannelPSDs(self.f, tuple((float(speeds[c].min()), float(speeds[c].max())) for c in classes),
-                           {ch: np.stack([P[c, i].mean(axis=0) for c in classes]) for i, ch in enumerate(self.channels)},
+                           {ch: np.stack([P[c, i].mean(axis=0) for c in classes])
+                            for i, ch in enumerate(self.channels)},
                            dict(units or {}))
 
 

@@ -94,9 +94,9 @@ def build_html(folder, results: dict, *, title: str | None = None, criteria=None
     campaign = next((r["campaign"] for r in results.values() if isinstance(r.get("campaign"), str)), None)
     inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
     run = load_run(folder)
-    skipped = {RUN_STEP_RESULTS[s["name"]]: f"skipped: {s.get('reason')}" for s in (run or {}).get("steps", [])
-               if s.get("status") == "skipped" and s.get("name") in RUN_STEP_RESULTS}
-    acceptance = evaluate(DEFAULTS if criteria is None else criteria, results, skipped)
+    needless = {RUN_STEP_RESULTS[s["name"]]: f"skipped: {s.get('reason')}" for s in (run or {}).get("steps", [])
+                if s.get("status") == "skipped" and s.get("needless") and s.get("name") in RUN_STEP_RESULTS}
+    acceptance = evaluate(DEFAULTS if criteria is None else criteria, results, needless)
     return env.get_template("report.html.j2").render(
         title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
         acceptance=acceptance, verdict=verdict(acceptance), default_criteria=criteria is None,
