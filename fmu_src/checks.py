@@ -64,7 +64,10 @@ def masters_agree(path, *, step: float = 1e-3, stop: float = 2.0) -> dict:
     with contextlib.redirect_stdout(io.StringIO()):  # fmpy prints a line for the speed input it is not given
         a = fmpy.simulate_fmu(str(path), stop_time=stop, output_interval=step, step_size=step, input=table,
                               output=outputs, start_values=start)
-    b = simulate_libcosim(path, step=step, stop=stop, outputs=outputs, inputs=table, start_values=start)
+    # libcosim's FMI Library logs two errors for every FMI 2 FMU's independent variable `time`
+    # (fmi-library issue 21, a misreading of the standard): only its failures are shown
+    b = simulate_libcosim(path, step=step, stop=stop, outputs=outputs, inputs=table, start_values=start,
+                          log_level="fatal")
     n = min(len(a), len(b))
     std = {name: float(np.std(a[name][:n])) for name in outputs}
     rel = {name: float(np.max(np.abs(a[name][:n] - b[name][:n]))) / std[name] if std[name] > 0 else None
