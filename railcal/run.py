@@ -204,7 +204,7 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
     if stopped is not None:
         steps += [{"name": s.name, "status": "not run", "reason": f"the run stopped at {stopped}"}
                   for s in planned[len(steps):]]
-    record = {"format": RUN_FORMAT, "campaign": str(campaign.root), "campaign_sha256": campaign_sha,
+    record = {"format": RUN_FORMAT, "campaign": str(Path(campaign.root).resolve()), "campaign_sha256": campaign_sha,
               "model": model, "stopped_at": stopped, "steps": steps, "provenance": provenance([], argv=None)}
     write_json_atomic(record_path, record)  # the report shows how its results were made: the steps so far
     why_no_pdf = pdf_available() if pdf else "not asked for"

@@ -170,6 +170,7 @@ def test_a_campaign_written_by_hand_runs_to_its_report_and_a_step_failing_later_
     html = (out / "report.html").read_text()
     assert number(ident["modes"][0]["frequency_hz"]) in html
     assert verdict(evaluate(DEFAULTS, load_results(out))) in html
+    assert "test car; hand-written test campaign" in html  # the sign-off block names them as campaign.toml does
 
     # the track recording gone: validation cannot be done now, the run goes on and says so, and
     # the earlier validation is not left for the report to show as current

@@ -38,7 +38,8 @@ RUN_STEP_RESULTS = {"validate extended": "validation_extended", "export-fmu exte
 
 
 def number(x, digits: int = 4) -> str:
-    """A number as the report shows it: ``digits`` significant figures (an integer whole);
+    """A number as the report shows it: ``digits`` significant figures (an integer whole, and
+    one from 10^4 up to 10^12 to the unit: a distance of 10000.5 m reads 10000, not 1e+04);
     '-' for none."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "-"
@@ -46,6 +47,8 @@ def number(x, digits: int = 4) -> str:
         return str(x)
     if isinstance(x, int):
         return str(x)
+    if 1e4 <= abs(x) < 1e12:
+        return f"{x:.0f}"
     return f"{x:.{digits}g}"
 
 
@@ -64,6 +67,20 @@ def load_run(folder) -> dict | None:
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) and isinstance(record.get("steps"), list) else None
+
+
+def _vehicle(campaign: str | None) -> str | None:
+    """The vehicle and the campaign's name as its campaign.toml gives them, when it can be read."""
+    from calibration.data.campaign import open_campaign
+    from calibration.data.errors import CampaignError
+
+    if campaign is None:
+        return None
+    try:
+        meta = open_campaign(campaign).meta
+    except (CampaignError, InputError, OSError):
+        return None
+    return "; ".join(x for x in (meta.vehicle, meta.name) if x) or None
 
 
 def _figures(folder: Path, results: dict) -> dict:
@@ -92,14 +109,15 @@ def build_html(folder, results: dict, *, title: str | None = None, criteria=None
                              autoescape=jinja2.select_autoescape(["html", "j2"]), undefined=jinja2.StrictUndefined)
     env.filters["n"] = number
     campaign = next((r["campaign"] for r in results.values() if isinstance(r.get("campaign"), str)), None)
-    inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
     run = load_run(folder)
+    vehicle = _vehicle((run or {}).get("campaign")) or _vehicle(campaign)
+    inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
     needless = {RUN_STEP_RESULTS[s["name"]]: f"skipped: {s.get('reason')}" for s in (run or {}).get("steps", [])
                 if s.get("status") == "skipped" and s.get("needless") and s.get("name") in RUN_STEP_RESULTS}
     acceptance = evaluate(DEFAULTS if criteria is None else criteria, results, needless)
     return env.get_template("report.html.j2").render(
         title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
-        acceptance=acceptance, verdict=verdict(acceptance), default_criteria=criteria is None,
+        vehicle=vehicle, acceptance=acceptance, verdict=verdict(acceptance), default_criteria=criteria is None,
         figures=_figures(folder, results), provenance=provenance(inputs, root=folder), steps=list(RESULTS),
         kind=campaign_kind(results), run=run)
 
