@@ -19,20 +19,29 @@ from pathlib import Path
 
 import numpy as np
 
-_LEVEL = re.compile(r"^(?:\x1b\[[0-9;]*m)*(DEBUG|INFO|WARNING|ERROR|CRITICAL)\s*\| (.*)$")
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
+_LEVEL = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\s*\| (.*)$")
+
+
+def fmutool_log(path) -> tuple[int, list[tuple[str, str]]]:
+    """Run ``fmutool -input PATH -check``: its exit code and its log as (level, message)."""
+    proc = subprocess.run([sys.executable, "-m", "fmu_manipulation_toolbox.cli.fmutool", "-input", str(path),
+                           "-check"], check=False, capture_output=True, text=True, timeout=300)
+    records = []
+    for line in _ANSI.sub("", proc.stdout + proc.stderr).splitlines():
+        m = _LEVEL.match(line)
+        if m:
+            records.append((m[1], m[2].strip()))
+        elif line.strip():  # a message over several lines, or a traceback: keep it, at its record's level
+            records.append((records[-1][0] if records else "UNPARSED", line.strip()))
+    return proc.returncode, records
 
 
 def fmutool_check(path) -> dict:
-    """``fmutool -input PATH -check``: its exit code and its warnings and errors."""
-    proc = subprocess.run([sys.executable, "-m", "fmu_manipulation_toolbox.cli.fmutool", "-input", str(path),
-                           "-check"], check=False, capture_output=True, text=True, timeout=300)
-    problems = []
-    for line in (proc.stdout + proc.stderr).splitlines():
-        m = _LEVEL.match(line)
-        if m and m[1] in ("WARNING", "ERROR", "CRITICAL"):
-            problems.append(f"{m[1]}: {_ANSI.sub('', m[2]).strip()}")
-    return {"exit_code": proc.returncode, "problems": problems, "pass": proc.returncode == 0 and not problems}
+    """fmutool's verdict on the FMU at ``path``: its exit code and its warnings and errors."""
+    code, log = fmutool_log(path)
+    problems = [f"{level}: {msg}" for level, msg in log if level not in ("DEBUG", "INFO")]
+    return {"exit_code": code, "problems": problems, "pass": code == 0 and not problems}
 
 
 def _drive(inputs, t: np.ndarray) -> np.ndarray:

@@ -232,10 +232,6 @@ def cmd_crosscheck(args) -> int:
 
 
 # ------------------------------------------------------------------------------- run
-def _joined(names) -> str:
-    return ",".join(names)
-
-
 def cmd_run(args) -> int:
     from railcal.run import run_campaign
 
@@ -250,9 +246,9 @@ def cmd_run(args) -> int:
     for s in record["steps"]:
         if s["status"] == "skipped":
             skipped.setdefault(s["reason"], []).append(s["name"])
+    skips = "".join(f"; skipped {','.join(names)}: {why}" for why, names in skipped.items())
     print(f"run of {campaign.root} with {model}: {len(done)} steps done"
-          f"{'; not done: ' + '; '.join(failed) if failed else ''}"
-          f"{''.join(f'; skipped {_joined(names)}: {why}' for why, names in skipped.items())}; wrote {args.out}")
+          f"{'; not done: ' + '; '.join(failed) if failed else ''}{skips}; wrote {args.out}")
     return EXIT_INPUT if record["stopped_at"] else EXIT_OK
 
 

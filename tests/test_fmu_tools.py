@@ -5,8 +5,6 @@ Semantic Checks": unique names and value references, causality / variability / i
 combinations, start values, <ModelStructure>). Every finding is logged at level ERROR, and
 any makes the tool exit with code 7 (its ``ExitCode.CHECK_FAILED``)."""
 import re
-import subprocess
-import sys
 import zipfile
 
 import pytest
@@ -14,22 +12,13 @@ import pytest
 pytest.importorskip("fmu_manipulation_toolbox")
 
 CHECK_FAILED = 7
-ANSI = re.compile(r"\x1b\[[0-9;]*m")
-LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\s*\| (.*)$")
 
 
 def fmutool_check(path) -> tuple[int, list[tuple[str, str]]]:
-    """Run ``fmutool -input <path> -check``: its exit code and its log as (level, message)."""
-    proc = subprocess.run([sys.executable, "-m", "fmu_manipulation_toolbox.cli.fmutool", "-input", str(path),
-                           "-check"], check=False, capture_output=True, text=True, timeout=120)
-    records = []
-    for line in ANSI.sub("", proc.stdout + proc.stderr).splitlines():
-        m = LINE.match(line)
-        if m:
-            records.append((m[1], m[2].strip()))
-        elif line.strip():  # a message over several lines, or a traceback: keep it, at its record's level
-            records.append((records[-1][0] if records else "UNPARSED", line.strip()))
-    return proc.returncode, records
+    """``fmutool -check``'s exit code and its whole log, as `export-fmu --check` reads it."""
+    from fmu_src.checks import fmutool_log
+
+    return fmutool_log(path)
 
 
 @pytest.mark.parametrize("version", [2, 3])
