@@ -51,7 +51,7 @@ def test_full_flag_reaches_run_demo(tmp_path, monkeypatch, flags, full):
 
     def fake(out, *, progress=None, full=False):
         seen["full"] = full
-        return out / "report.md"
+        return out / "demo.md"
 
     monkeypatch.setattr(demo, "run_demo", fake)
     assert cli.main(["demo", "--out", str(tmp_path / "d"), "--quiet", *flags]) == 0
