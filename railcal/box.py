@@ -10,7 +10,7 @@ from calibration.data.outputs import write_result
 from calibration.swarm_defaults import (CAMPAIGN_DONE_PCT, CAMPAIGN_SWARMS, TYPED_MIN_MAC, TYPED_POLISH_STEPS,
                                         TYPED_REFINE_ROUNDS, TYPED_SWARMS)
 
-from .common import campaign_of, names, progress_for, read_identification
+from .common import campaign_of, names, progress_for, read_identification, write_calibration
 
 
 def identify(campaign, args, png: Path, second: Path) -> str:
@@ -106,10 +106,7 @@ def calibrate(args) -> str:
     else:
         result = _calibrate_typed_targets(args, settings, swarms)
         out = result.to_json()
-    from calibration.convergence_plots import plot_convergence
-
-    png = plot_convergence(out, Path(args.out).with_suffix(".png"))
-    write_result(args.out, {**out, "plot": None if png is None else str(png)}, "calibration")
+    png = write_calibration(out, args.out)
     pso = result.pso
     runs = pso.get("swarms", ())
     ends = ", ".join(f"{r['end_max_error_pct']:.3g} %" for r in runs)

@@ -11,7 +11,7 @@ from calibration.models.car2d import (CarExtras, carbody_centre, extras_from_jso
                                       sensor_model_from_json)
 from calibration.models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 
-from .common import campaign_of, names, progress_for, read_identification
+from .common import campaign_of, names, progress_for, read_identification, write_calibration
 
 
 def parameters(calibration: dict, path) -> CarParameters:
@@ -116,7 +116,7 @@ def calibrate(args) -> str:
                                            identified=identified, progress=progress_for(args))
         out = result.to_json()
         out["identified_modes"] = [m.to_json() for m in modes]
-        png = _with_convergence(out, args.out)
+        png = write_calibration(out, args.out)
         n = len(result.targets)
         return (f"calibrated to {n} identified mode{'s' * (n != 1)} ({', '.join(result.targets)}): "
                 f"max error {result.max_error_pct:.3g} %; "
@@ -125,7 +125,7 @@ def calibrate(args) -> str:
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
     result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
                            seed=args.seed, refine_result=args.refine)
-    png = _with_convergence(result.to_json(), args.out)
+    png = write_calibration(result.to_json(), args.out)
     refined = ""
     if result.refinement is not None:
         refined = (" after CasADi refinement" if result.refinement["improved"]
@@ -133,16 +133,6 @@ def calibrate(args) -> str:
     within = "" if args.priors else " within the seed's Table 7 ranges (intercity trailer car)"
     return (f"{args.method} x {args.runs} runs{within}{refined}: max error {result.max_error_pct:.3g} %; "
             f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
-
-
-def _with_convergence(out: dict, path) -> Path | None:
-    """Write the calibration file ``out`` at ``path`` with its search's convergence figure
-    beside it (.png); returns the figure's path."""
-    from calibration.convergence_plots import plot_convergence
-
-    png = plot_convergence(out, Path(path).with_suffix(".png"))
-    write_result(path, {**out, "plot": None if png is None else str(png)}, "calibration")
-    return png
 
 
 def validate(campaign, calibration: dict, args) -> str:

@@ -236,7 +236,7 @@ def cmd_run(args) -> int:
     from railcal.run import run_campaign
 
     campaign = campaign_of(args)
-    model = args.model or ("box" if campaign.meta.kind == "stationary_excitation" else "car2d")
+    model = args.model or model_for_campaign(campaign).name
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     record = run_campaign(campaign, Path(args.out), model=model, pdf=not args.no_pdf, say=say,
                           criteria_path=args.criteria)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from calibration.data.campaign import open_campaign
 from calibration.data.errors import InputError
-from calibration.data.outputs import read_result
+from calibration.data.outputs import read_result, write_result
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT = 0, 1, 2
 
@@ -90,3 +90,13 @@ def read_identification(path, campaign, parse):
                          "changed: run railcal identify on it again", path=path, key="campaign_sha256")
     with about_calibration(path):
         return parse(data)
+
+
+def write_calibration(out: dict, path) -> Path | None:
+    """Write the calibration file ``out`` at ``path`` with its search's convergence figure
+    beside it (.png, :mod:`calibration.convergence_plots`); returns the figure's path."""
+    from calibration.convergence_plots import plot_convergence
+
+    png = plot_convergence(out, Path(path).with_suffix(".png"))
+    write_result(path, {**out, "plot": None if png is None else str(png)}, "calibration")
+    return png

@@ -85,23 +85,17 @@ def run_demo(out: Path, *, progress=None, full: bool = False) -> Path:
     synth_in_service(out / CAMPAIGNS["in_service"], seed=DEMO_SEED, settings=s, overwrite=True, progress=progress)
     say("demo: railcal run on the in-service campaign")
     runs = {"in_service": run_campaign(open_campaign(out / CAMPAIGNS["in_service"]), out / RESULTS["in_service"],
-                                       model="car2d", say=say, pdf=_pdf())}
+                                       model="car2d", say=say)}
     say("demo: synthesising the stationary excitation test of the box carbody (2 x 300 s, 27 floor accelerometers)")
     synth_excitation(out / CAMPAIGNS["excitation"], seed=DEMO_SEED, settings=demo.excitation, overwrite=True)
     say("demo: railcal run on the excitation test")
     runs["excitation"] = run_campaign(open_campaign(out / CAMPAIGNS["excitation"]), out / RESULTS["excitation"],
-                                      model="box", say=say, pdf=_pdf(), options=demo.run_options())
+                                      model="box", say=say, options=demo.run_options())
     checks = demo_checks(out)
     text = _demo_md(out, runs, checks, demo, time.perf_counter() - t0)
     path = out / "demo.md"
     path.write_text(text)
     return path
-
-
-def _pdf() -> bool:
-    from .report.render import pdf_available
-
-    return pdf_available() is None
 
 
 def _result(out: Path, kind: str, name: str) -> dict | None:

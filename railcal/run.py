@@ -174,7 +174,8 @@ def run_campaign(campaign, out, *, model: str, pdf: bool = True, say=print, crit
             for o in step.outputs:  # an earlier run's result of it would describe another model
                 Path(o).unlink(missing_ok=True)
             steps.append({"name": step.name, "command": ["railcal", *step.argv], "key": key, "status": "skipped",
-                          "reason": step.skip, "needless": step.needless})
+                          "reason": step.skip, "needless": step.needless,
+                          "outputs": [Path(o).name for o in step.outputs]})
             log.append(f"{step.name}: skipped, {step.skip}")
             say(f"[{i}/{len(planned) + 1}] {step.name}: skipped, {step.skip}")
             continue

@@ -32,11 +32,6 @@ RESULTS = {"identification": ("identification.json", "identification"),
            "fmu_extended": ("fmu_extended.json", "fmu-check")}
 
 
-#: `railcal run`'s step -> the result it writes (those a run may skip)
-RUN_STEP_RESULTS = {"validate extended": "validation_extended", "export-fmu extended": "fmu_extended",
-                    "crosscheck extended": "crosscheck_extended"}
-
-
 def number(x, digits: int = 4) -> str:
     """A number as the report shows it: ``digits`` significant figures (an integer whole, and
     one from 10^4 up to 10^12 to the unit: a distance of 10000.5 m reads 10000, not 1e+04);
@@ -72,13 +67,12 @@ def load_run(folder) -> dict | None:
 def _vehicle(campaign: str | None) -> str | None:
     """The vehicle and the campaign's name as its campaign.toml gives them, when it can be read."""
     from calibration.data.campaign import open_campaign
-    from calibration.data.errors import CampaignError
 
     if campaign is None:
         return None
     try:
         meta = open_campaign(campaign).meta
-    except (CampaignError, InputError, OSError):
+    except (InputError, OSError):  # a CampaignError is an InputError
         return None
     return "; ".join(x for x in (meta.vehicle, meta.name) if x) or None
 
@@ -112,8 +106,9 @@ def build_html(folder, results: dict, *, title: str | None = None, criteria=None
     run = load_run(folder)
     vehicle = _vehicle((run or {}).get("campaign")) or _vehicle(campaign)
     inputs = [folder / name for name, _ in RESULTS.values() if (folder / name).is_file()]
-    needless = {RUN_STEP_RESULTS[s["name"]]: f"skipped: {s.get('reason')}" for s in (run or {}).get("steps", [])
-                if s.get("status") == "skipped" and s.get("needless") and s.get("name") in RUN_STEP_RESULTS}
+    step_of = {name: step for step, (name, _) in RESULTS.items()}  # result file -> its step
+    needless = {step_of[o]: f"skipped: {s.get('reason')}" for s in (run or {}).get("steps", [])
+                if s.get("status") == "skipped" and s.get("needless") for o in s.get("outputs", []) if o in step_of}
     acceptance = evaluate(DEFAULTS if criteria is None else criteria, results, needless)
     return env.get_template("report.html.j2").render(
         title=title or f"Vehicle model sign-off: {campaign or folder.name}", campaign=campaign, r=results,
