@@ -72,6 +72,9 @@ def _diagnose_excitation(campaign, progress, calibration=None, calibration_path=
 
     if calibration is None:
         return diagnose_excitation(campaign, progress=progress)
+    if calibration.get("extension"):  # its file could not carry a second one beside it
+        raise InputError("the calibration is already an extended model (a diagnosis's); the box model carries one "
+                         "extension: diagnose from the calibration it extends", path=calibration_path, key="extension")
     model, start = calibrated_box_model(calibration)
     factors = factor_set(calibration.get("factor_set"), side_end_zone=calibration.get("side_end_zone_m"))
     fit = calibration.get("max_error_pct")
@@ -79,7 +82,7 @@ def _diagnose_excitation(campaign, progress, calibration=None, calibration_path=
         raise InputError(f"'max_error_pct' must be a percentage (0 or more), got {fit!r}", path=calibration_path,
                          key="max_error_pct")
     return diagnose_excitation(campaign, progress=progress, model=model, factors=factors, start=start,
-                               start_fit_pct=None if fit is None else float(fit))
+                               start_fit_pct=None if fit is None else float(fit), model_keys=calibration)
 
 
 def _car_example() -> dict:

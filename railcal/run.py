@@ -68,7 +68,7 @@ def _speed(identification: Path, default: float = 40.0) -> float:
 def _no_extended_model(diagnosis: Path) -> tuple[str, bool] | None:
     """Why the diagnosis at ``diagnosis`` gives no extended model to validate, export and
     cross-check, and whether that is because there is none (True: the steps are needless) or
-    because railcal cannot carry it (False); None when it gives one (or is not made yet)."""
+    because its file holds none (False); None when it gives one (or is not made yet)."""
     try:
         d = json.loads(diagnosis.read_text())
     except (OSError, ValueError):
@@ -77,9 +77,9 @@ def _no_extended_model(diagnosis: Path) -> tuple[str, bool] | None:
         return None
     if not d.get("extension") and not d.get("findings"):  # in service, findings are the causes and properties
         return f"the diagnosis found {d.get('cause')}: there is no extended model, the calibrated one stands", True
-    if "parameters" not in d:
-        return (f"the box model's FRF comparison, FMU and exudyn cross-check do not carry the diagnosis's "
-                f"extension ({(d.get('extension') or {}).get('name')}) yet", False)
+    if "parameters" not in d:  # a file written before the diagnosis wrote its extended model
+        return (f"the diagnosis file names {d.get('cause')} but holds no extended model (no 'parameters'): "
+                f"diagnose again to make one", False)
     return None
 
 

@@ -32,8 +32,10 @@ from static equilibrium):
     evaluating them (products of 3n x 3n matrices at every mass-matrix and force evaluation)
     took 95 % of the integration time. The body is the linear modal model either way
     (identical eigenfrequencies and responses);
-* bogies 1 and 2: ``ObjectRigidBody`` on ``NodeRigidBodyRxyz`` at their centres of mass, mass
-  and principal inertias from the vehicle description;
+* bogies 1 and 2 (and an extended model's equipment): ``ObjectRigidBody`` on
+  ``NodeRigidBodyRxyz`` at their centres of mass, mass and principal inertias from the vehicle
+  description; a body's held DOF (the equipment's all but the vertical) by a
+  ``CoordinateConstraint`` each;
 * every suspension ``Link``: a ``CartesianSpringDamper`` (per-axis k [N/m] and c [N s/m]) from a
   ``MarkerSuperElementPosition`` at the seat (or, for an axle box, a ``MarkerBodyPosition`` on
   its wheelset's rail point) to a ``MarkerBodyPosition`` on the bogie;
@@ -76,7 +78,7 @@ from exudyn.itemInterface import (
     VObjectGenericODE2,
 )
 
-from calibration.models.box.assembly import BoxModel, local_operator, assemble
+from calibration.models.box.assembly import RIGID_DOFS, BoxModel, local_operator, assemble
 from calibration.models.box.vehicle_reduction import carbody_basis
 from calibration.models.box.fit import sensor_operator
 from calibration.models.box.shinkansen import free_carbody
@@ -294,11 +296,12 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
 
     bogies, bogie_nodes = {}, {}
     for rb in vehicle.bodies:
-        if rb.fixed:
-            raise ValueError(f"rigid body {rb.name}: fixed DOFs are not supported")
         bogie_nodes[rb.name] = mbs.AddNode(NodeRigidBodyRxyz(referenceCoordinates=list(rb.centre) + [0.0] * 3))
         bogies[rb.name] = mbs.AddObject(ObjectRigidBody(nodeNumber=bogie_nodes[rb.name], mass=rb.mass,
                                                         inertia=list(rb.inertia) + [0.0] * 3))
+        for held in rb.fixed:  # a held DOF (an extended model's equipment moves vertically only)
+            m = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=bogie_nodes[rb.name], coordinate=RIGID_DOFS.index(held)))
+            mbs.AddObject(CoordinateConstraint(markerNumbers=[m_ground, m]))
 
     # the rail under each wheelset: a vertical point mass whose level the rail prescribes
     rail_nodes, rail_bodies, rail_constraints = [], [], []

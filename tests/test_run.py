@@ -84,7 +84,7 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     assert "not applicable (FMU checks of the extended model; exudyn cross-check of the extended model)" in html
 
 
-def test_the_extended_models_steps_are_skipped_when_there_is_none_or_railcal_cannot_carry_it(campaign, tmp_path):
+def test_the_extended_models_steps_are_skipped_when_there_is_none_or_its_file_holds_none(campaign, tmp_path):
     from railcal.run import plan
 
     out = tmp_path / "results"
@@ -101,9 +101,13 @@ def test_the_extended_models_steps_are_skipped_when_there_is_none_or_railcal_can
                              ({"cause": "none", "extension": None, "findings": [], "parameters": {}}, "car2d")):
         steps = extended_steps(diagnosis, model)
         assert len(steps) == 3 and all("found none" in s.skip and s.needless for s in steps)
-    # an excitation-test extension, which the box FMU does not carry: not needless, a gap
+    # a cause whose file holds no extended model (no parameters): not needless, a gap
     steps = extended_steps({"cause": "underfloor_equipment", "extension": {"name": "underfloor_equipment"}}, "box")
-    assert all("underfloor_equipment" in s.skip and not s.needless for s in steps)
+    assert all("underfloor_equipment" in s.skip and "no extended model" in s.skip and not s.needless for s in steps)
+    # an excitation-test cause with its extended model: run
+    steps = extended_steps({"cause": "underfloor_equipment", "extension": {"name": "underfloor_equipment"},
+                            "model": "box", "parameters": {}}, "box")
+    assert all(s.skip is None for s in steps)
     # in service, a property found with no cause: an extended model, run
     steps = extended_steps({"cause": "none", "extension": None, "findings": [{"name": "m", "role": "property"}],
                             "parameters": {}}, "car2d")

@@ -4,7 +4,9 @@
 The model accelerance from the exciter force to every floor accelerometer is the modal
 sum of the calibrated box model (all modes up to 100 Hz and the static residual of the
 rest, :func:`calibration.models.box.modal.modal_model`), with the identified damping ratio
-on each mode paired with a measured one and the median identified ratio on the others.
+on each mode paired with a measured one and the median identified ratio on the others. A
+diagnosis's extended model (a file with an ``extension``) is paired again by mode shape
+(:func:`shape_paired_damping`), and a load cell's gain divides its FRFs.
 Per channel over the analysis band: the frequency response assurance criterion
 
     FRAC = |sum_f conj(H_meas) H_model|^2 / (sum_f |H_meas|^2 sum_f |H_model|^2)
@@ -21,6 +23,7 @@ import numpy as np
 from ..data.campaign import Campaign
 from ..data.errors import InputError
 from ..identification.excitation import ExcitationIdentification, identify_excitation
+from ..models.box.extended import force_gain
 from ..models.box.modal import modal_model
 from ..models.box.shinkansen import calibrated_box_model
 from ..signals.modal import frac, log_error_db
@@ -57,25 +60,59 @@ class FRFComparison:
                 "frac_min": float(self.frac.min()), "frac_median": float(np.median(self.frac))}
 
 
+#: an identified mode gives its damping to the elastic model mode its shape is most alike
+#: (MAC at least this) within :data:`PAIR_FREQUENCY` of its frequency
+PAIR_MAC = 0.5
+PAIR_FREQUENCY = 0.2
+
+
+def shape_paired_damping(modal, ident: ExcitationIdentification) -> np.ndarray:
+    """Damping ratios for ``modal``'s modes (NaN where none is identified): each identified
+    mode's on the elastic model mode of largest MAC (at least :data:`PAIR_MAC`, within
+    :data:`PAIR_FREQUENCY` in frequency), the pairs taken in order of MAC, one each."""
+    zeta = np.full(modal.frequency_hz.size, np.nan)
+    elastic = np.array(modal.kind) == "elastic"
+    pairs = []
+    for m in ident.modes:
+        if m.damping_ratio is None:
+            continue
+        for k in np.nonzero(elastic & (np.abs(modal.frequency_hz / m.frequency_hz - 1) <= PAIR_FREQUENCY))[0]:
+            v = modal.sensor_shapes[:, k]
+            mac = abs(np.vdot(m.shape, v)) ** 2 / (np.vdot(m.shape, m.shape).real * np.dot(v, v) + 1e-300)
+            if mac >= PAIR_MAC:
+                pairs.append((mac, m.label, int(k), m.damping_ratio))
+    taken = set()
+    for _, label, k, z in sorted(pairs, reverse=True):
+        if label not in taken and np.isnan(zeta[k]):
+            zeta[k] = z
+            taken.add(label)
+    return zeta
+
+
 def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentification | None = None) -> FRFComparison:
     ident = identify_excitation(campaign) if ident is None else ident
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
     exciter = meta.exciter()
-    if not (isinstance(calibration, dict) and {"parameters", "fit"} <= set(calibration)):
-        raise InputError("not a box calibration result: it needs parameters and fit", key="--calibration")
-    fit = calibration["fit"]
-    model, params = calibrated_box_model(calibration)  # the file's factor set; parameters checked
+    extended = isinstance(calibration, dict) and bool(calibration.get("extension"))
+    if not (isinstance(calibration, dict) and "parameters" in calibration and ("fit" in calibration or extended)):
+        raise InputError("not a box calibration result: it needs parameters and fit (or a diagnosis's extended "
+                         "model)", key="--calibration")
+    model, params = calibrated_box_model(calibration)  # the file's factor set and extension; parameters checked
     modal0 = modal_model(model, params, sensors=sensors, exciter=exciter)
-    zeta = np.full(modal0.frequency_hz.size, np.nan)
-    # damping of the modes the calibration was fitted to (its own identification), by label
-    rows = calibration.get("identified_modes") or [{"label": m.label, "damping_ratio": m.damping_ratio}
-                                                  for m in ident.modes]
-    identified = {r["label"]: r["damping_ratio"] for r in rows}
-    for row in fit:  # a target of merged modes ("mode_5+mode_6", a close pair's span): their mean
-        known = [identified[part] for part in row["label"].split("+") if identified.get(part) is not None]
-        if row.get("model_mode") and known:
-            zeta[int(row["model_mode"]) - 1] = float(np.mean(known))
+    if extended:  # the calibration's pairing is of the model before the extension: paired again here
+        zeta = shape_paired_damping(modal0, ident)
+        identified = {m.label: m.damping_ratio for m in ident.modes}
+    else:
+        zeta = np.full(modal0.frequency_hz.size, np.nan)
+        # damping of the modes the calibration was fitted to (its own identification), by label
+        rows = calibration.get("identified_modes") or [{"label": m.label, "damping_ratio": m.damping_ratio}
+                                                      for m in ident.modes]
+        identified = {r["label"]: r["damping_ratio"] for r in rows}
+        for row in calibration["fit"]:  # a target of merged modes ("mode_5+mode_6", a close pair's span): their mean
+            known = [identified[part] for part in row["label"].split("+") if identified.get(part) is not None]
+            if row.get("model_mode") and known:
+                zeta[int(row["model_mode"]) - 1] = float(np.mean(known))
     default = float(np.median([z for z in identified.values() if z is not None]))
     zeta = np.where(np.isfinite(zeta), zeta, np.where(np.array(modal0.kind) == "elastic", default,
                                                       modal0.damping_ratio))
@@ -83,6 +120,6 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentifi
     lo, hi = ident.settings.band
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]
-    Hm, Ha = ident.frf.H[sel], modal.frf(f)
+    Hm, Ha = ident.frf.H[sel], modal.frf(f) / force_gain(calibration)  # the FRF per force as its load cell reads it
     return FRFComparison(ident.sensors, f, Hm, Ha, frac(Hm, Ha), log_error_db(Hm, Ha), (lo, hi),
                          ident.frf.coherence[sel])

@@ -1,7 +1,8 @@
 /* The box-type vehicle: the calibrated carbody in its free-free modes below the export's
- * cut-off plus residual-flexibility pseudo-modes (static correction), two rigid bogies with
- * six DOF, the suspension elements, and the wheelsets held to the rail by the axle boxes
- * (calibration/models/box/reduction.py builds these matrices; model_data.h carries them).
+ * cut-off plus residual-flexibility pseudo-modes (static correction), the rigid bodies with
+ * their free DOF (two bogies with six; an extended model's equipment with its vertical one),
+ * the suspension elements, and the wheelsets held to the rail by the axle boxes
+ * (calibration/models/box/vehicle_reduction.py builds these matrices; model_data.h carries them).
  *
  *     M q'' + (C_s + C_c(zeta)) q' + K q = B_k z + B_c dz + b_f F,    y = S q''
  *

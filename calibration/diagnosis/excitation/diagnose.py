@@ -11,6 +11,7 @@ import numpy as np
 from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
 from ...models.box import BoxModel, FactorSet
+from ...models.box.rig import point_record
 from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import baseline_start, fit_baseline, modal_damping
@@ -55,7 +56,7 @@ def _refit_baseline(ctx: Context, base: Fitted, held: HeldOut,
 def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | None = None,
                         settings: ExcitationDiagnosisSettings = ExcitationDiagnosisSettings(),
                         factors: FactorSet | None = None, start: Mapping[str, float] | None = None,
-                        start_fit_pct: float | None = None) -> ExcitationDiagnosis:
+                        start_fit_pct: float | None = None, model_keys: Mapping | None = None) -> ExcitationDiagnosis:
     """Diagnose an excitation-test campaign (kind ``stationary_excitation``; the package
     docstring tells how).
 
@@ -66,7 +67,9 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     from it when ``model`` is None; default: the grouped set), within the campaign's priors,
     else the set's ranges. ``start``: a calibration's factors by name, where the baseline's
     FRF refinement starts instead of after a swarm, and ``start_fit_pct`` that calibration's
-    modal fit [%] (recorded with it).
+    modal fit [%] (recorded with it). ``model_keys``: the calibration file's keys that
+    describe ``model`` (``factor_set``, ``side_end_zone_m``, ``order_change``, ...), which the
+    extended model's file repeats (:func:`extended_model_keys`).
 
     Bad input raises :class:`InputError` naming the campaign.toml key."""
     t0 = time.perf_counter()
@@ -113,7 +116,29 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
                             {n: (a, b) for n, a, b in zip(ctx.names, ctx.low, ctx.high)}, modal_damping(base))
     return ExcitationDiagnosis(str(campaign.root), cause, summary, ctx.meas_test, evidence, record, hypotheses, best,
                                extension_modes, tuple(ctx.train.label), tuple(ctx.test.label), s, ctx.n_modes,
-                               ctx.model.n_dof, time.perf_counter() - t0, confidence, intervals, detect)
+                               ctx.model.n_dof, time.perf_counter() - t0, confidence, intervals, detect,
+                               extended_model_keys(campaign, ctx, model_keys or {}))
+
+
+#: the keys of a box calibration file that describe its model, and so the extended model's
+MODEL_KEYS = ("factor_set", "side_end_zone_m", "order_change", "sensors", "exciter", "identified_modes")
+
+
+def extended_model_keys(campaign: Campaign, ctx: Context, given: Mapping) -> dict:
+    """The extended model's calibration keys but its factors and extension: those ``given``
+    of :data:`MODEL_KEYS` (the calibration's), else the factor set the model was built from,
+    the campaign's sensors and exciter and the training part's identified modes (whose
+    damping the FMU takes)."""
+    out = {k: given[k] for k in MODEL_KEYS if k in given}
+    if "factor_set" not in out and ctx.factors is not None:
+        out["factor_set"] = ctx.factors.name
+        if ctx.factors.side_end_zone:
+            out["side_end_zone_m"] = ctx.factors.side_end_zone
+    meta = campaign.meta
+    out.setdefault("sensors", [point_record(meta.sensor(n)) for n in ctx.sensors])
+    out.setdefault("exciter", point_record(meta.exciter()))
+    out.setdefault("identified_modes", [m.to_json() for m in ctx.ident.modes])
+    return out
 
 
 def _ranges_words(priors, ctx) -> str:

@@ -84,6 +84,8 @@ class ExcitationDiagnosis:
         word (None for ``none`` and ``unexplained``)
     intervals : each hypothesis's gain with its interval, by name
     detectability : each extension's weakest effect this campaign could have named
+    model_keys : the calibration keys describing the model beside its factors
+        (:func:`.diagnose.extended_model_keys`), which the extended model's file repeats
     """
 
     campaign: str
@@ -104,6 +106,7 @@ class ExcitationDiagnosis:
     certainty: Confidence | None = None
     intervals: dict = field(default_factory=dict)
     detectability: Detectability | None = None
+    model_keys: dict = field(default_factory=dict)
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -116,9 +119,13 @@ class ExcitationDiagnosis:
         return None if self.certainty is None else self.certainty.word
 
     def to_json(self) -> dict:
-        """The diagnosis file's content (``railcal-diagnosis/1``), without the figures' paths."""
+        """The diagnosis file's content (``railcal-diagnosis/1``), without the figures' paths;
+        with a cause, also the extended model as a box calibration file's keys (``model``,
+        ``parameters``, :attr:`model_keys`; ``extension`` is read as its addition:
+        :mod:`calibration.models.box.extended`), so that the file is one."""
         s, best = self.settings, self.extension
-        return {
+        model = {} if best is None else {"model": "box", "parameters": dict(best.factors), **self.model_keys}
+        return {**model,
             "format": RESULT_FORMATS["diagnosis"], "campaign": self.campaign, "kind": KIND, "cause": self.cause,
             "evidence": {"summary": list(self.summary), **self.evidence.to_json()},
             "extension": None if best is None else {

@@ -31,6 +31,7 @@ import numpy as np
 
 from ...data.errors import InputError
 from .assembly import BoxModel, BoxVehicle, Joint, Link, PointMass, RigidBody, StiffnessParameter, assemble
+from .extended import extend_vehicle
 from .panel import Panel
 
 
@@ -412,7 +413,8 @@ def calibrated_box_model(calibration: dict):
     """The box model a calibration file describes and its factors: (model, {name: factor}),
     the model assembled from the file's ``factor_set`` (files without one: grouped) at its
     panel orders plus ``order_change`` (files without one: 0), every factor it does not name
-    nominal. InputError for an unknown set or factor, a factor that is not a positive
+    nominal, with the file's ``extension`` built in (a diagnosis's extended model:
+    :mod:`.extended`). InputError for an unknown set or factor, a factor that is not a positive
     number, or an ``order_change`` that is not an integer."""
     name, zone = calibration.get("factor_set"), calibration.get("side_end_zone_m")
     if (zone is None) != (name not in ZONED):
@@ -444,5 +446,6 @@ def calibrated_box_model(calibration: dict):
     if indefinite:
         raise InputError("box parameters give a plate that is not positive definite: " + "; ".join(indefinite),
                          key="parameters")
-    model = assemble(shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters))
+    vehicle = shinkansen_vehicle(order_increase=order_change, parameters=factors.parameters)
+    model = assemble(extend_vehicle(vehicle, calibration))
     return model, {n: values[n] for n in model.names}

@@ -6,12 +6,13 @@ carbody takes (the exciter, and each suspension element's seat along each axis i
 in) the static shape of the modes left out, found by a shifted solve and M-orthogonalised
 against the kept modes, then diagonalised among themselves (Craig & Kurdila, *Fundamentals
 of structural dynamics*, 2006, section 17.5; the "modal truncation augmentation" of
-Dickens, Nakagawa & Wittbrodt, Comput. Struct. 62 (1997) 985-998). The bogies stay rigid
-bodies with six DOF and the suspension elements stay elements, assembled on these
+Dickens, Nakagawa & Wittbrodt, Comput. Struct. 62 (1997) 985-998). The bogies (and an
+extended model's equipment) stay rigid bodies with their free DOF (six for a bogie) and the
+suspension elements stay elements, assembled on these
 coordinates the way :mod:`.assembly` assembles them on the full model; the wheelsets are
 held by the axle boxes to the rail, whose vertical level under wheelset j is an input.
 
-q = (eta, bogie1 (x, y, z, roll, pitch, yaw), bogie2 (...)), with eta the carbody's
+q = (eta, bogie1 (x, y, z, roll, pitch, yaw), bogie2 (...), ...), with eta the carbody's
 generalised coordinates (M-orthonormal, K-diagonal: stiffness omega^2), so
 
     M q'' + (C_s + C_c) q' + K q = B_k z + B_c dz + b_f F
@@ -50,6 +51,11 @@ class ReducedVehicle:
     n_modes: int  # true carbody modes kept (the rest of the carbody coordinates are pseudo-modes)
     cutoff_hz: float
     wheelset_x: np.ndarray  # (4,) [m] wheelsets 1 (leading) .. 4
+
+    @property
+    def n_carbody(self) -> int:
+        """The carbody's coordinates: its modes and pseudo-modes."""
+        return sum(n.startswith("carbody_") for n in self.names)
 
     def damping(self, zeta: float) -> np.ndarray:
         return self.C_suspension + np.diag(np.where(self.elastic, 2.0 * zeta * self.omega, 0.0))
@@ -129,8 +135,7 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
     cb = assemble(free_carbody(vehicle))
     n_cb = cb.n_dof
     bodies = [b for b in vehicle.bodies]
-    if any(b.fixed for b in bodies):
-        raise ValueError("the reduction expects free rigid bodies (six DOF each)")
+    free = {b.name: [i for i, d in enumerate(RIGID_DOFS) if d not in b.fixed] for b in bodies}
     # carbody loads: the exciter and every suspension seat along each axis the element acts in
     seats = []
     for ln in vehicle.links:
@@ -148,8 +153,8 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
     loads = np.column_stack([e_full[:n_cb]] + seats)
     V, omega_c, n_modes = carbody_basis(cb, p, cutoff_hz, loads)
     n_eta = V.shape[1]
-    nq = n_eta + 6 * len(bodies)
-    body_col = {b.name: n_eta + 6 * i for i, b in enumerate(bodies)}
+    nq = n_eta + sum(len(v) for v in free.values())
+    body_col = dict(zip(free, n_eta + np.cumsum([0] + [len(v) for v in free.values()])[:-1]))
 
     def operator(body, point, patch=(0.0, 0.0)):
         """(3, nq) displacement of a material point in the reduced coordinates."""
@@ -161,14 +166,14 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
             out[:, :n_eta] = G @ V[idx]
             return out
         rb = next(b for b in bodies if b.name == body)
-        out[:, body_col[body]:body_col[body] + 6] = rb.operator(point)
+        out[:, body_col[body]:body_col[body] + len(free[body])] = rb.operator(point)[:, free[body]]
         return out
 
     M = np.zeros((nq, nq))
     M[:n_eta, :n_eta] = np.eye(n_eta)
     for b in bodies:
-        c = body_col[b.name]
-        M[c:c + 6, c:c + 6] = np.diag([b.mass] * 3 + list(b.inertia))
+        c, n = body_col[b.name], len(free[b.name])
+        M[c:c + n, c:c + n] = np.diag(np.array([b.mass] * 3 + list(b.inertia))[free[b.name]])
     K = np.zeros((nq, nq))
     K[:n_eta, :n_eta] = np.diag(omega_c**2)
     C = np.zeros((nq, nq))
@@ -198,7 +203,7 @@ def reduce_vehicle(model: BoxModel, parameters, cutoff_hz: float, sensors, excit
     omega[:n_eta] = omega_c
     names = tuple(f"carbody_mode_{k + 1}" for k in range(n_modes)) + tuple(
         f"carbody_pseudo_{k + 1}" for k in range(n_eta - n_modes)) + tuple(
-        f"{b.name}_{d}" for b in bodies for d in RIGID_DOFS)
+        f"{b.name}_{RIGID_DOFS[i]}" for b in bodies for i in free[b.name])
     return ReducedVehicle(names, M, K, C, omega, elastic, B_k, B_c, b_force, S, tuple(s.name for s in sensors),
                           n_modes, float(cutoff_hz), wheelset_x)
 

@@ -1,0 +1,118 @@
+"""The box model with a diagnosis's extension built in (calibration/models/box/extended.py):
+each extension is the physics the diagnosis fitted, its reduction for the FMU and its exudyn
+build agree, and a malformed extension is refused naming its key. The coarse model
+(``COARSE_BOX_ORDERS``) keeps the file fast; the physics is the same at full order."""
+import numpy as np
+import pytest
+import scipy.sparse.linalg
+from conftest import COARSE_BOX_ORDERS
+
+from calibration.data.campaign import Sensor
+from calibration.data.errors import InputError
+from calibration.diagnosis.excitation.basis import Operators, Stiffness
+from calibration.diagnosis.excitation.frf import mount_impedance
+from calibration.models.box.extended import extend_vehicle, extension_of, force_gain
+from calibration.models.box.rig import EXCITER, SENSOR_GRID, point_record
+from calibration.models.box.shinkansen import calibrated_box_model
+from calibration.models.box.vehicle_reduction import frf_full, frf_reduced
+from fmu_src.box import box_reduced
+
+BASE = {"model": "box", "parameters": {"roof_bending": 1.3, "floor_membrane": 0.8}, "order_change": COARSE_BOX_ORDERS,
+        "sensors": [point_record(s) for s in SENSOR_GRID[:6]], "exciter": point_record(EXCITER)}
+EQUIPMENT = {"name": "underfloor_equipment", "parameters": {
+    "equipment_mass_kg": 900.0, "mounting_frequency_hz": 11.0, "mounting_damping_ratio": 0.05,
+    "mount_x_m": 3.0, "mount_y_m": 0.4}}
+
+
+def _with(extension):
+    return {**BASE, "extension": extension}
+
+
+def test_equipment_is_the_diagnosis_point_impedance_on_the_vehicle():
+    """Receptances of the vehicle without the equipment, coupled through the mount's
+    impedance (Sherman-Morrison, the form the diagnosis fits), equal the extended vehicle's
+    by direct solves: the equipment is the fitted mass on the fitted spring-damper."""
+    model, p = calibrated_box_model(BASE)
+    ext, _ = calibrated_box_model(_with(EQUIPMENT))
+    assert ext.n_dof == model.n_dof + 1  # one vertical DOF: the others are held
+    eq = EQUIPMENT["parameters"]
+    mount = Sensor("mount", "displacement", "m", "floor", "z", (eq["mount_x_m"], eq["mount_y_m"], EXCITER.position[2]))
+    sensors = tuple(SENSOR_GRID[:6])
+    f = np.array([7.3, 10.6, 11.0, 14.2])
+    w2 = (2 * np.pi * f)[:, None] ** 2
+    G_se = -frf_full(model, p, f, sensors, EXCITER) / w2
+    G_me = -frf_full(model, p, f, (mount,), EXCITER) / w2
+    G_sm = -frf_full(model, p, f, sensors, mount) / w2
+    G_mm = -frf_full(model, p, f, (mount,), mount) / w2
+    kappa = mount_impedance(2 * np.pi * f, eq["equipment_mass_kg"], eq["mounting_frequency_hz"],
+                            eq["mounting_damping_ratio"])[:, None]
+    expected = G_se - kappa * G_me * G_sm / (1 + kappa * G_mm)
+    got = -frf_full(ext, p, f, sensors, EXCITER) / w2
+    np.testing.assert_allclose(got, expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    assert np.abs(got - G_se).max() > 0.05 * np.abs(G_se).max()  # and the equipment does change them
+
+
+@pytest.mark.parametrize("panel", ["floor_middle", "roof"])
+def test_softening_is_the_diagnosis_stiffness_of_the_softened_panel(coarse_box_model, panel):
+    model, p = calibrated_box_model(BASE)
+    ext, _ = calibrated_box_model(_with({"name": "local_panel_softening",
+                                          "parameters": {"panel": panel, "rigidity_divisor": 4.0}}))
+    x = np.array([p[n] for n in model.names])
+    ours = Stiffness(x, panel, 4.0).matrix(Operators.build(model, SENSOR_GRID[:6], EXCITER))
+    got = ext.stiffness(x)
+    assert scipy.sparse.linalg.norm(got - ours) <= 1e-12 * scipy.sparse.linalg.norm(ours)
+    assert scipy.sparse.linalg.norm(got - model.stiffness(x)) > 1e-3 * scipy.sparse.linalg.norm(ours)
+
+
+def test_a_load_cell_gain_divides_the_fmus_frf_and_leaves_the_structure():
+    gain = 1.07
+    cal = _with({"name": "force_calibration", "parameters": {"force_gain": gain}})
+    assert force_gain(cal) == gain and force_gain(BASE) == 1.0
+    base, ext = box_reduced(BASE, 40.0), box_reduced(cal, 40.0)
+    np.testing.assert_array_equal(ext.K, base.K)
+    f = np.array([6.0, 9.5, 13.0])
+    np.testing.assert_allclose(frf_reduced(ext, f, 0.02), frf_reduced(base, f, 0.02) / gain, rtol=1e-12)
+
+
+def test_the_equipment_in_the_fmu_reduction_and_in_exudyn_has_the_full_models_frequencies():
+    """The extended vehicle reduced for the FMU (its equipment a rigid body with one free
+    DOF) and built in exudyn (the other five held by constraints) against the full model:
+    the eigenfrequencies below 20 Hz, within the cross-check's 1e-4."""
+    from reference_models.box import (build_box_exudyn, eigen_errors, exudyn_frequencies, full_frequencies,
+                                      reduced_frequencies)
+
+    cal = _with(EQUIPMENT)
+    model, p = calibrated_box_model(cal)
+    reduced = box_reduced(cal, 60.0)
+    assert reduced.names[-1] == "underfloor_equipment_z" and reduced.M[-1, -1] == 900.0
+    mbs, _ = build_box_exudyn(model, p, cutoff_hz=60.0, zeta=0.02, sensors=SENSOR_GRID[:6], exciter=EXCITER)
+    ex, red, full = exudyn_frequencies(mbs), reduced_frequencies(reduced), full_frequencies(model, p)
+    assert len(ex) == len(red) == len(full)
+    base_full = full_frequencies(*calibrated_box_model(BASE))
+    assert len(full) == len(base_full) + 1  # the equipment's own mode
+    assert eigen_errors(red, ex).max() <= 1e-4 and eigen_errors(full, ex).max() <= 1e-4
+
+
+@pytest.mark.parametrize("extension, key", [
+    ({"name": "bogie_hunting", "parameters": {}}, "extension.name"),
+    ({"name": "underfloor_equipment", "parameters": {**EQUIPMENT["parameters"], "equipment_mass_kg": -1.0}},
+     "extension.equipment_mass_kg"),
+    ({"name": "underfloor_equipment", "parameters": {**EQUIPMENT["parameters"], "mount_x_m": float("nan")}},
+     "extension.mount_x_m"),
+    ({"name": "underfloor_equipment", "parameters": {**EQUIPMENT["parameters"], "mount_x_m": 40.0}},
+     "extension.mount_x_m"),
+    ({"name": "local_panel_softening", "parameters": {"panel": "bonnet", "rigidity_divisor": 2.0}},
+     "extension.panel"),
+    ({"name": "local_panel_softening", "parameters": {"panel": "roof"}}, "extension.rigidity_divisor"),
+    ({"name": "force_calibration", "parameters": {"force_gain": True}}, "extension.force_gain"),
+    ("equipment", "extension"),
+])
+def test_a_malformed_extension_is_refused_naming_its_key(extension, key):
+    with pytest.raises(InputError) as e:
+        calibrated_box_model(_with(extension))
+    assert e.value.key == key
+
+
+def test_without_an_extension_the_vehicle_is_itself(coarse_box_model):
+    assert extension_of(BASE) is None
+    assert extend_vehicle(coarse_box_model.vehicle, BASE) is coarse_box_model.vehicle
