@@ -152,12 +152,12 @@ def _calibrate_typed_targets(args, settings, swarms: int):
                          pairing=PairingSettings(min_mac=TYPED_MIN_MAC))
 
 
-def validate(campaign, calibration: dict, args) -> str:
+def validate(campaign, calibration: dict, args, figures) -> str:
     from calibration.validation.excitation import compare_frf
 
     result = compare_frf(campaign, calibration)
-    png = result.plot(Path(args.out).with_suffix(".png"))
-    phase_png = result.plot_phase(png.with_name(png.stem + "_phase.png"))
+    png = result.plot(figures[0])
+    phase_png = result.plot_phase(figures[1])
     out = result.to_json()
     out["plot"], out["plots"] = str(png), [phase_png.name]
     write_result(args.out, out, "validation")

@@ -135,15 +135,15 @@ def calibrate(args) -> str:
             f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
 
 
-def validate(campaign, calibration: dict, args) -> str:
+def validate(campaign, calibration: dict, args, figures) -> str:
     from calibration.validation.in_service import validate as validate_runs
 
     p = parameters(calibration, args.calibration)
     bogie_dx, gyro_gain = sensor_model(calibration, args.calibration)
     result = validate_runs(campaign, p, extras=extras(calibration, args.calibration), bogie_dx=bogie_dx,
                            gyro_gain=gyro_gain, progress=progress_for(args))
-    png = result.plot(Path(args.out).with_suffix(".png"))
-    runs_png = result.plot_runs(png.with_name(png.stem + "_runs.png"))
+    png = result.plot(figures[0])
+    runs_png = result.plot_runs(figures[1])
     out = result.to_json()
     out["plot"], out["plots"] = str(png), [runs_png.name]
     write_result(args.out, out, "validation")

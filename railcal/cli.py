@@ -151,7 +151,7 @@ def cmd_validate(args) -> int:
     calibration = read_calibration(path)
     model = _model_for(campaign, calibration, path)
     with about_calibration(path):
-        print(model.validate(campaign, calibration, args))
+        print(model.validate(campaign, calibration, args, figures))
     return EXIT_OK
 
 

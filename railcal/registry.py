@@ -25,8 +25,9 @@ class VehicleModel:
     identification_figure : the suffix of the second figure, written beside the first.
     modes(args) -> dict : the eigen-analysis of ``railcal modes``.
     calibrate(args) -> summary : calibrate to a campaign or to typed targets, write the file.
-    validate(campaign, calibration, args) -> summary : compare the calibrated model with the
-        campaign, write the JSON and its figure.
+    validate(campaign, calibration, args, figures) -> summary : compare the calibrated model with
+        the campaign, write the JSON and its figures at ``figures`` (the first, then one per
+        :attr:`validation_figures` suffix: the command names them all before any is written).
     diagnose(campaign, progress, calibration=None, calibration_path=None) -> diagnosis : what
         the model gets wrong, from the user's calibration when given (a result object with
         ``cause``, ``summary``, ``to_json()`` and ``plot(stem)``).
