@@ -15,6 +15,10 @@ of the carbody: it is reported as a :class:`LocalResonance`, not as a mode to ca
 to. The result does not depend on the BLAS thread count or the CPU's kernels beyond
 round-off (:func:`ema.lscf`).
 
+Each mode carries standard errors of its frequency and damping ratio from a delete-one-group
+jackknife over the Welch segments (:mod:`.ema_jackknife`), and each channel a noise floor
+(:mod:`calibration.signals.noise_floor`): the responses' power not coherent with the force.
+
 Shapes are not re-fitted by LSFD over the band: with a dozen bogie and local panel modes
 in 6-24 Hz that the floor grid barely sees, an LSFD restricted to the selected poles
 smears the missing ones into the residues (MAC 0.3-0.6 against the truth on the synthetic
