@@ -32,6 +32,31 @@ def test_rigid_body_modes_are_found_within_tolerance(identified):
         assert m.damping_ratio == pytest.approx(truth["damping_ratios"][label], abs=0.04), label
 
 
+def assert_noise_floors_match_the_truth(floors: list, truth: dict):
+    """Bogie, floor and gyro channels carry nothing but white sensor noise above 25 Hz: their
+    floor is that noise's density; the axle boxes carry the rail's short waves too, so
+    theirs is an upper bound of their noise."""
+    noise = truth["noise_rms_si"]
+    expected = {"bogie1_acc_z": noise["bogie1_acc_z"], "bogie1_gyro_pitch": noise["bogie1_gyro_pitch"]}
+    expected.update({f["channel"]: noise["carbody"] for f in floors if f["channel"].startswith("carbody")})
+    by_channel = {f["channel"]: f for f in floors}
+    for name, rms in expected.items():
+        asd = rms / np.sqrt(noise["white_up_to_hz"])  # [unit/sqrt(Hz)] of a white noise to fs / 2
+        assert by_channel[name]["asd_si_per_sqrt_hz"] == pytest.approx(asd, rel=0.05), name
+        assert by_channel[name]["band_hz"][0] >= 25.0 and by_channel[name]["method"] == "psd_percentile"
+    axle = [f for f in floors if f["channel"].startswith("axle")]
+    assert axle and all(f["asd_si_per_sqrt_hz"] >= 0.95 * noise["axle_boxes"] / np.sqrt(noise["white_up_to_hz"])
+                        for f in axle)
+    assert by_channel["bogie1_gyro_pitch"]["unit"] == "rad/s" and by_channel["bogie1_acc_z"]["unit"] == "m/s^2"
+
+
+def test_every_channels_noise_floor_is_its_sensor_noise_through_gaps_and_nan(identified):
+    result, truth = identified
+    floors = result.to_json()["data"]["noise_floors"]
+    assert [f["channel"] for f in floors] == [s.name for s in open_campaign(result.campaign).meta.sensors]
+    assert_noise_floors_match_the_truth(floors, truth)
+
+
 def test_sleepers_are_speed_dependent_at_0_7_m_and_the_gyro_tone_is_not_the_vehicle(identified):
     result, _ = identified
     sleepers = [ln for ln in result.spectral_lines if ln.kind == "speed_dependent"

@@ -83,6 +83,11 @@ def test_constant_speed_campaign_identifies_its_bogie_and_says_why_not_its_carbo
             assert "cannot be told apart" in undetermined[label]["reason"]
     ambiguous = [ln for ln in data["spectral_lines"] if ln["kind"] == "ambiguous" and ln["exponent"] is None]
     assert ambiguous, "at one speed some lines cannot be classified; their exponent is null"
+    # at one speed the track's lines stand still; between them the bogie's channels show their sensor noise
+    floors = {f["channel"]: f["asd_si_per_sqrt_hz"] for f in data["data"]["noise_floors"]}
+    noise = truth["noise_rms_si"]
+    for name in ("bogie1_acc_z", "bogie1_gyro_pitch"):
+        assert floors[name] == pytest.approx(noise[name] / math.sqrt(noise["white_up_to_hz"]), rel=0.05), name
 
 
 @pytest.mark.slow

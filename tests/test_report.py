@@ -121,3 +121,30 @@ def test_the_verdict_follows_the_criteria_given(results, tmp_path, capsys):
     assert main(["report", str(results), "--criteria", str(strict)]) == 2
     assert "criterion[0].result" in capsys.readouterr().err
     assert (results / "report.html").stat().st_mtime_ns == before
+
+
+def test_an_excitation_tests_report_shows_its_noise_floors_and_standard_errors(tmp_path, capsys):
+    """A results folder holding only a shaker test's identification: the data-quality table
+    gives every channel's noise floor, the modes their standard errors, each the JSON's number."""
+    from conftest import COARSE_BOX_ORDERS
+    from calibration.truth.excitation import ExcitationSettings, synth_excitation
+
+    synth_excitation(tmp_path / "shaker", seed=2,
+                     settings=ExcitationSettings(runs=1, duration=120.0, order_change=COARSE_BOX_ORDERS))
+    out = tmp_path / "results"
+    out.mkdir()
+    assert main(["identify", str(tmp_path / "shaker"), "--out", str(out / "identification.json"), "--quiet"]) == 0
+    assert main(["report", str(out), "--quiet"]) == 0
+    parser = _Cells()
+    parser.feed((out / "report.html").read_text())
+    for path, text in parser.cells:
+        assert any(text == number(_at(out, path), digits) for digits in (2, 4)), (path, text)
+    paths = {path for path, _ in parser.cells}
+    ident = json.loads((out / "identification.json").read_text())
+    floors = ident["data"]["noise_floors"]
+    assert len(floors) == 1 + len(ident["sensors"])  # the force and every accelerometer
+    assert all(f"identification/data/noise_floors/{k}/asd_si_per_sqrt_hz" in paths for k in range(len(floors)))
+    assert ident["modes"] and all(f"identification/modes/{k}/frequency_std_hz" in paths
+                                  for k, m in enumerate(ident["modes"]) if m["frequency_std_hz"] is not None)
+    assert sum(m["frequency_std_hz"] is not None for m in ident["modes"]) >= len(ident["modes"]) - 1
+    assert "Not in this report yet" not in (out / "report.html").read_text()

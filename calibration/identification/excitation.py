@@ -15,6 +15,10 @@ of the carbody: it is reported as a :class:`LocalResonance`, not as a mode to ca
 to. The result does not depend on the BLAS thread count or the CPU's kernels beyond
 round-off (:func:`ema.lscf`).
 
+Each mode carries standard errors of its frequency and damping ratio from a delete-one-group
+jackknife over the Welch segments (:mod:`.ema_jackknife`), and each channel a noise floor
+(:mod:`calibration.signals.noise_floor`): the responses' power not coherent with the force.
+
 Shapes are not re-fitted by LSFD over the band: with a dozen bogie and local panel modes
 in 6-24 Hz that the floor grid barely sees, an LSFD restricted to the selected poles
 smears the missing ones into the residues (MAC 0.3-0.6 against the truth on the synthetic
@@ -30,8 +34,13 @@ from ..data.campaign import Campaign
 from .. import checks
 from ..data.errors import InputError
 from ..data.outputs import result_label, result_number, result_rows
+from ..data.units import SI_UNIT
 from ..signals.modal import mac_matrix
+from ..signals.noise_floor import (NON_COHERENT, SPECTRAL_FLOOR, NoiseFloor, NoiseFloorSettings, non_coherent_floor,
+                                   spectral_floor)
 from . import ema
+from .data_quality import noise_band
+from .ema_jackknife import GroupSpectra, ModeSpread, group_spectra, jackknife_modes
 
 
 @dataclass(frozen=True)
@@ -55,6 +64,10 @@ class ExcitationIdentifySettings:
     # 0.93-1.00 (docs/methods/identification-excitation.md).
     local_share: float = 0.9
     local_min_channels: int = 6
+    # Groups of contiguous Welch segments of the delete-one-group jackknife that gives each
+    # mode's standard errors (each group costs one more identification, ~0.1 s)
+    jackknife_groups: int = 10
+    noise: NoiseFloorSettings = NoiseFloorSettings()  # the percentile, and the force's band above the analysis band
 
     def __post_init__(self):
         checks.increasing(self, "band", low=0.0)
@@ -64,6 +77,7 @@ class ExcitationIdentifySettings:
             raise ValueError(f"ExcitationIdentifySettings.orders must be increasing integers >= 2, got {self.orders!r}")
         checks.fraction(self, "min_fraction", "cluster_mac", "local_share", closed=True)
         checks.whole(self, "local_min_channels", minimum=2)
+        checks.whole(self, "jackknife_groups", minimum=3)
         checks.positive(self, "cluster_tol", "bandwidth_fraction", "max_damping", "peak_separation_hz")
 
 
@@ -75,9 +89,14 @@ class ExcitationMode:
     shape: np.ndarray  # (n_sensors,) complex, largest entry 1
     n_stable: int
     peak_picking_hz: float | None  # the baseline's nearest peak, if within 1 %
+    frequency_std_hz: float | None = None  # delete-one-group jackknife standard error [Hz]
+    damping_std: float | None = None  # the same of the damping ratio [-]
+    replicates: int | None = None  # jackknife replicates that found the mode
 
     def to_json(self) -> dict:
         return {"label": self.label, "frequency_hz": self.frequency_hz, "damping_ratio": self.damping_ratio,
+                "frequency_std_hz": self.frequency_std_hz, "damping_std": self.damping_std,
+                "jackknife_replicates": self.replicates,
                 "n_stable": self.n_stable, "peak_picking_hz": self.peak_picking_hz,
                 "shape_real": self.shape.real.tolist(), "shape_imag": self.shape.imag.tolist()}
 
@@ -96,7 +115,9 @@ class ExcitationMode:
         return cls(label=label, frequency_hz=result_number(row, "frequency_hz", where, positive=True),
                    damping_ratio=result_number(row, "damping_ratio", where, optional=True), shape=shape,
                    n_stable=n_stable if isinstance(n_stable, int) else 0,
-                   peak_picking_hz=result_number(row, "peak_picking_hz", where, optional=True))
+                   peak_picking_hz=result_number(row, "peak_picking_hz", where, optional=True),
+                   frequency_std_hz=result_number(row, "frequency_std_hz", where, optional=True),
+                   damping_std=result_number(row, "damping_std", where, optional=True))
 
 
 @dataclass(frozen=True)
@@ -155,6 +176,8 @@ class ExcitationIdentification:
     records: int
     settings: ExcitationIdentifySettings = field(repr=False, default_factory=ExcitationIdentifySettings)
     local: tuple[LocalResonance, ...] = ()  # resonances of one measurement point (also in ``rejected``)
+    noise_floors: tuple[NoiseFloor, ...] = ()
+    jackknife_groups: int = 0  # groups of Welch segments the standard errors come from (0: none)
 
     def plot(self, path, mac=None):
         """The stabilisation diagram at ``path`` and the modes' auto-MAC at ``mac`` (default:
@@ -185,6 +208,12 @@ class ExcitationIdentification:
             "modes": [m.to_json() for m in self.modes],
             "rejected_peaks": list(self.rejected),
             "auto_mac": self.auto_mac().tolist(),
+            "data": {"noise_floors": [n.to_json() for n in self.noise_floors]},
+            "uncertainty": {"method": "delete-one-group jackknife: the Welch segments in time order split into "
+                                      "contiguous groups, each left out in turn, H1 and p-LSCF identification repeated "
+                                      "and the modes paired by frequency and MAC; a mode's standard errors come from "
+                                      "the replicates that found it (jackknife_replicates), none from fewer than 3",
+                            "groups": self.jackknife_groups},
             "frf": {"welch_segments": self.frf.n_averages, "records": self.records,
                     "resolution_hz": float(self.frf.frequency[1] - self.frf.frequency[0]),
                     "median_coherence_in_band": float(np.median(self.frf.coherence[
@@ -245,16 +274,57 @@ def identify_excitation(campaign: Campaign, settings: ExcitationIdentifySettings
              for m, one in zip(keep, at_one) if one is not None]
     keep = [m for m, one in zip(keep, at_one) if one is None]
     rejected += [r.to_json() for r in local]
+    spectra = group_spectra(records, meta.sampling_rate, settings.nperseg, settings.jackknife_groups)
+    spread = mode_standard_errors(spectra, keep, settings)
     modes = []
-    for k, m in enumerate(keep):
+    for k, (m, sd) in enumerate(zip(keep, spread)):
         near = [p.frequency_hz for p in peaks if abs(p.frequency_hz / m.frequency_hz - 1) < 0.01]
         nearest = float(min(near, key=lambda x: abs(x - m.frequency_hz))) if near else None
         modes.append(ExcitationMode(f"mode_{k + 1}", float(m.frequency_hz), float(m.damping_ratio), m.shape,
-                                int(m.n_stable), nearest))
+                                    int(m.n_stable), nearest, sd.frequency_std_hz, sd.damping_std, sd.replicates))
     poles = [m.frequency_hz for m in keep] + [r.frequency_hz for r in local]
     for p in peaks:
         if not any(abs(p.frequency_hz / hz - 1) < 0.01 for hz in poles):
             rejected.append({"frequency_hz": float(p.frequency_hz),
                              "reason": "peak in the FRF sum with no stable pole (not a clear mode)"})
+    units = {s.name: SI_UNIT[s.quantity] for s in meta.sensors}
+    floors = noise_floors(spectra, force, sensors, units, settings, meta.sampling_rate)
     return ExcitationIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings,
-                                    tuple(local))
+                                    tuple(local), floors, int(spectra.counts.size) if len(spectra.counts) >= 3 else 0)
+
+
+def find_modes(frequency: np.ndarray, H: np.ndarray, settings: ExcitationIdentifySettings) -> list[ema.Mode]:
+    """The modes of an FRF ``H`` (n_f, n_out) at ``frequency`` [Hz] as the identification
+    keeps them: clusters of p-LSCF poles in enough orders, damped no more than a structure."""
+    stab = ema.lscf(frequency, H, settings.band, settings.orders, max_damping=1.0)
+    found = stab.select_modes(min_fraction=settings.min_fraction, cluster_tol=settings.cluster_tol,
+                              cluster_mac=settings.cluster_mac, bandwidth_fraction=settings.bandwidth_fraction)
+    return [m for m in found if m.damping_ratio is not None and 0 < m.damping_ratio <= settings.max_damping]
+
+
+def mode_standard_errors(spectra: GroupSpectra, modes: list[ema.Mode], settings: ExcitationIdentifySettings
+                         ) -> list[ModeSpread]:
+    """Each of ``modes``' standard errors by the delete-one-group jackknife over ``spectra``
+    (:mod:`.ema_jackknife`), each replicate identified by :func:`find_modes`."""
+    if spectra.counts.size < 3:
+        return [ModeSpread(None, None, 0, int(spectra.counts.size))] * len(modes)
+    return jackknife_modes(spectra, modes, lambda H: find_modes(spectra.frequency, H, settings),
+                           cluster_tol=settings.cluster_tol, bandwidth_fraction=settings.bandwidth_fraction,
+                           cluster_mac=settings.cluster_mac)
+
+
+def noise_floors(spectra: GroupSpectra, force: str, sensors: tuple[str, ...], units: dict,
+                 settings: ExcitationIdentifySettings, fs: float) -> tuple[NoiseFloor, ...]:
+    """The responses' noise floors from their power not coherent with the force over the
+    analysis band, and the force's (which nothing measured is coherent with but itself) as
+    the spectral floor above the band, where the vehicle's modes are no longer analysed."""
+    Gff, Gfy, Gyy, n = spectra.average()
+    band = (float(settings.band[0]), float(settings.band[1]))
+    out = []
+    above = noise_band(settings.band[1], fs, settings.noise)
+    if above is not None:
+        psd = float(spectral_floor(spectra.frequency, Gff, above, n, settings.noise.percentile))
+        out.append(NoiseFloor(force, units.get(force, "N"), psd, above, SPECTRAL_FLOOR, n))
+    floors = non_coherent_floor(spectra.frequency, Gff, Gfy, Gyy, band, n, settings.noise.percentile)
+    out += [NoiseFloor(name, units.get(name, ""), float(p), band, NON_COHERENT, n) for name, p in zip(sensors, floors)]
+    return tuple(out)

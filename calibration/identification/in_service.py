@@ -39,10 +39,13 @@ from ..data.units import SI_UNIT
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
+from ..signals.noise_floor import NoiseFloorSettings, WelchSums
 from ..signals.peaks import parabolic_shift
+from ..signals.resample import regular_run
 from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
 from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
                   plan_segments)
+from .data_quality import noise_band, run_report
 from .frf import Pole, fit_poles, h1
 from .prior_range import damping_outside, outside, prior_damping_ranges, prior_frequency_ranges
 
@@ -59,6 +62,7 @@ IO_ANALYSIS = "input_output"
 class IdentifySettings:
     fdd: FDDSettings = FDDSettings()
     lines: LineSettings = LineSettings()
+    noise: NoiseFloorSettings = NoiseFloorSettings()  # channels' noise floors, above the FDD band
     carbody_band: tuple[float, float] = (0.4, 4.0)  # [Hz]
     bogie_band: tuple[float, float] = (2.5, 20.0)  # [Hz]
     extra_poles: int = 1  # computational poles that absorb what lies outside the band
@@ -176,6 +180,7 @@ class InServiceIdentification:
     runs: tuple = ()  # what was read: per run samples, duration, gaps, invalid samples
     psd: object = field(default=None, repr=False)  # ChannelPSDs by speed class
     undetermined: tuple[UndeterminedMode, ...] = ()
+    noise_floors: tuple = ()  # NoiseFloor of each channel
 
     def mode(self, label: str) -> IdentifiedMode:
         for m in self.modes:
@@ -215,7 +220,8 @@ class InServiceIdentification:
                          "rejected": [{"run": o.segment.run_id, "start_m": o.segment.start, "reason": o.reason}
                                       for o in segs if not o.used]},
             "prior_frequencies_hz": self.prior_frequencies,
-            "data": {"runs": list(self.runs), "gaps": sum(len(r["gaps"]) for r in self.runs)},
+            "data": {"runs": list(self.runs), "gaps": sum(len(r["gaps"]) for r in self.runs),
+                     "noise_floors": [n.to_json() for n in self.noise_floors]},
             "psd_by_speed": None if self.psd is None else self.psd.to_json(),
             "settings": {"segment_length_m": self.fdd.settings.segment_length,
                          "band_hz": list(self.fdd.settings.band), "filter_order": self.fdd.settings.order,
@@ -322,12 +328,15 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings.fdd)
     acc = SegmentalFDDAccumulator(meta, tuple(analyses), plan, settings.fdd)
     collector = LineWindowCollector(tuple(s.name for s in meta.sensors), meta.sampling_rate, settings.lines)
+    noise = WelchSums(tuple(s.name for s in meta.sensors), meta.sampling_rate,
+                      round(settings.noise.segment_s * meta.sampling_rate))
     runs = []
     for path in campaign.run_paths:
         run = campaign.read_run(path.stem)
         n = acc.add_run(run)
         collector.add_run(run)
-        runs.append(_run_report(run))
+        noise.add_run(regular_run(run, meta.sampling_rate))
+        runs.append(run_report(run))
         if progress:
             progress(f"{path.stem}: {n} segments, {len(collector.windows)} steady-speed windows so far")
         del run
@@ -416,10 +425,13 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
     undetermined.sort(key=lambda u: RIGID_LABELS.index(u.label))
     rejected = _rejected(peaks, fdd, modes, lines)
-    psd = collector.psd_by_speed(units={s.name: SI_UNIT[s.quantity] for s in meta.sensors})
+    units = {s.name: SI_UNIT[s.quantity] for s in meta.sensors}
+    psd = collector.psd_by_speed(units=units)
+    band = noise_band(settings.fdd.band[1], meta.sampling_rate, settings.noise)
+    floors = () if band is None else tuple(noise.floors(units, band, settings.noise.percentile))
     return InServiceIdentification(str(campaign.root), tuple(modes), tuple(rejected), tuple(lines), fdd, peaks,
                                    frfs, {k: float(v) for k, v in prior_f.items()}, tuple(runs), psd,
-                                   tuple(undetermined))
+                                   tuple(undetermined), floors)
 
 
 def _no_peak(m: IdentifiedMode) -> str | None:
@@ -559,19 +571,6 @@ def _stable_bogie_pole(f: np.ndarray, H: np.ndarray, weights: np.ndarray, band: 
     return None, (f"its pole moved with the fit's order ({', '.join(f'{x:.3g}' for x in hz)} Hz with "
                   f"{first}-{first + settings.max_extra_order} poles), more than {settings.order_stability:.0%} "
                   "from one order to the next: the FRF holds more than the fit resolves")
-
-
-def _run_report(run) -> dict:
-    """What the reader found in one run: size, gaps (never interpolated), invalid samples."""
-    speed = run.speed
-    return {
-        "run": run.run_id, "samples": len(run), "duration_s": float(run.time[-1] - run.time[0]),
-        "distance_m": None if run.distance is None else [float(run.distance[0]), float(run.distance[-1])],
-        "speed_m_s": None if speed is None else [float(np.nanmin(speed)), float(np.nanmax(speed))],
-        "gaps": [{"after_time_s": g.after_time, "before_time_s": g.before_time, "duration_s": g.duration}
-                 for g in run.gaps],
-        "invalid_samples": {ch: int((~ok).sum()) for ch, ok in run.valid.items() if (~ok).any()},
-    }
 
 
 def _rejected(peaks, fdd: SegmentalFDD, modes, lines) -> list[RejectedPeak]:
