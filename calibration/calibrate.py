@@ -113,6 +113,7 @@ class CalibrationResult:
     fit: list = field(default_factory=list)
     identifiability: dict = field(default_factory=dict)
     refinement: dict | None = None
+    search: dict = field(default_factory=dict)  # each parameter's search range [low, high] (None: open)
 
     @property
     def max_error_pct(self) -> float:
@@ -121,7 +122,8 @@ class CalibrationResult:
     def to_json(self) -> dict:
         return {"model": "car2d", "method": self.method, "objective": self.objective,
                 "parameters": self.parameters.as_dict(), "fit": self.fit, "max_error_pct": self.max_error_pct,
-                "identifiability": self.identifiability, "refinement": self.refinement, "runs": self.runs}
+                "identifiability": self.identifiability, "refinement": self.refinement, "search": self.search,
+                "runs": self.runs}
 
 
 def _history(r) -> dict:
@@ -189,7 +191,8 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
             "error_pct": float(100 * (F[lbl][0] / f - 1)), "mac": None} for lbl, f in targets.items()]
     sigma = [sigma_f[k] for k in targets] if isinstance(sigma_f, dict) else sigma_f
     ident = identifiability(family, mean, tuple(targets), sigma_f=sigma, low=low, high=high).to_json()
-    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement)
+    ranges = {p.name: [p.low, p.high] for p in search}
+    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement, ranges)
 
 
 SEED_TABLE4 = {"carbody_bounce": 1.08, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}
