@@ -26,8 +26,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.ndimage
-import scipy.signal
 
 import warnings
 
@@ -39,10 +37,9 @@ from ..data.units import SI_UNIT
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
-from ..signals.peaks import parabolic_shift
 from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
-from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
-                  plan_segments)
+from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, fdd_peaks,
+                  plan_analyses, plan_segments)
 from .frf import Pole, fit_poles, h1
 from .prior_range import damping_outside, outside, prior_damping_ranges, prior_frequency_ranges
 
@@ -240,40 +237,6 @@ def prior_parameters(campaign: Campaign) -> CarParameters:
     except ParameterError as e:
         raise CampaignError(f"priors and vehicle geometry do not make a valid car: {e}", path=toml,
                             key="priors / vehicle") from None
-
-
-def fdd_peaks(f: np.ndarray, sv1: np.ndarray, prominence: float, *, smooth_hz: float = 0.1,
-              span: float = 1.5, ripple_factor: float = 5.0) -> list[tuple[float, float]]:
-    """(frequency [Hz], prominence [decades]) of the peaks of a summed first singular value.
-
-    The log spectrum is smoothed over ``smooth_hz``. A peak's prominence is measured
-    within [f / span, f * span] (a damped mode is as wide as its frequency times its
-    damping, and a broad rising trend is not a peak) and must exceed both
-    ``prominence`` and ``ripple_factor`` times the spectrum's own ripple (robust spread
-    of the log spectrum about its 1 Hz running mean), so the threshold follows how
-    many FDDs were summed. A peak whose neighbourhood reaches past the analysed band is
-    not reported: near the band edges a rising spectrum meets the band-pass filter's
-    skirt and makes a maximum that is the filter's, not the vehicle's.
-    """
-    df = f[1] - f[0]
-    y = np.log10(np.maximum(sv1, 1e-300))
-    ys = scipy.ndimage.uniform_filter1d(y, max(1, int(round(smooth_hz / df))), mode="nearest")
-    trend = scipy.ndimage.uniform_filter1d(y, max(3, int(round(1.0 / df))), mode="nearest")
-    ripple = 1.4826 * float(np.median(np.abs(ys - trend - np.median(ys - trend))))
-    threshold = max(prominence, ripple_factor * ripple)
-    out = []
-    for i in scipy.signal.find_peaks(ys)[0]:
-        if f[i] / span < f[0] or f[i] * span > f[-1]:
-            continue
-        lo = int(np.searchsorted(f, f[i] / span))
-        hi = int(np.searchsorted(f, f[i] * span))
-        left, right = ys[lo:i + 1], ys[i:hi]
-        if left.max() > ys[i] or right.max() > ys[i] or lo >= i or hi <= i + 1:
-            continue  # not the highest point of its neighbourhood, or at the band edge
-        prom = ys[i] - max(left.min(), right.min())
-        if prom >= threshold:
-            out.append((float(f[i] + parabolic_shift(y, int(i)) * df), float(prom)))
-    return out
 
 
 def _static_sign(pole: Pole, f: np.ndarray, H: np.ndarray) -> float:
