@@ -23,7 +23,7 @@ axle-box sensors, FDD peaks are labelled by frequency order against the prior mo
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from ..data.errors import CampaignError
 from ..data.outputs import result_label, result_number, result_rows
 from ..data.units import SI_UNIT
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
+from ..models.channel_shapes import response_channels
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
 from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
@@ -42,6 +43,7 @@ from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, 
                   plan_analyses, plan_segments)
 from .frf import Pole, fit_poles, h1
 from .prior_range import damping_outside, outside, prior_damping_ranges, prior_frequency_ranges
+from .shapes import SHAPE_ANALYSIS, ModeShape, mode_shape, shape_analysis
 
 RIGID_LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 #: Above this damping ratio a mode's response has no resonance peak (a single degree of
@@ -109,9 +111,10 @@ class IdentifiedMode:
     fdd_peak_hz: float | None  # the seed-faithful FDD estimate, where a peak was found
     prior_hz: float | None  # the prior model's frequency, for reference
     frequency_std_hz: float | None = None  # delete-one-journey jackknife standard error
+    shape: ModeShape | None = None  # at the response channels, :mod:`.shapes`
 
     def to_json(self) -> dict:
-        return dict(self.__dict__)
+        return {**self.__dict__, "shape": None if self.shape is None else self.shape.to_json()}
 
     @classmethod
     def from_json(cls, row: dict, where: str) -> "IdentifiedMode":
@@ -121,7 +124,7 @@ class IdentifiedMode:
                   for k in ("frequency_hz", "damping_ratio", "damped_frequency_hz", "fdd_peak_hz", "prior_hz")}
         std = result_number(row, "frequency_std_hz", where, optional=True)
         return cls(label=label, method=str(row.get("method", "")), source=str(row.get("source", "")),
-                   frequency_std_hz=std, **number)
+                   frequency_std_hz=std, shape=ModeShape.from_json(row.get("shape"), f"{where}.shape"), **number)
 
 
 def identified_modes_from_json(data: dict) -> tuple[IdentifiedMode, ...]:
@@ -281,6 +284,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     if not analyses:
         raise CampaignError("no vertical accelerometer on an axle box or bogie and no bogie pitch gyro: "
                             "nothing the in-service identification can use", path=toml, key="sensors")
+    responses = response_channels(meta.sensors, L_v=prior.L_v, L_b=prior.L_b)
+    shapes = shape_analysis(responses, max(a.n_fdds for a in analyses))  # the same segments as the rest
+    analyses += [shapes] if shapes else []
     # one streaming pass: each run is read once for the FDD segments and the line windows
     plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings.fdd)
     acc = SegmentalFDDAccumulator(meta, tuple(analyses), plan, settings.fdd)
@@ -305,7 +311,7 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     have_io = have_io and IO_ANALYSIS in fdd.results
     peaks = {}
     for name, r in fdd.results.items():
-        if name == IO_ANALYSIS:
+        if name in (IO_ANALYSIS, SHAPE_ANALYSIS):
             continue
         peaks[name] = fdd_peaks(r.frequency, r.singular_values[0], settings.peak_prominence)
 
@@ -376,6 +382,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             modes.remove(m)
             undetermined.append(UndeterminedMode(m.label, why))
     modes, undetermined = unpaired_carbody(modes, undetermined)
+    if SHAPE_ANALYSIS in fdd.results:
+        shaped = fdd.results[SHAPE_ANALYSIS]
+        modes = [replace(m, shape=mode_shape(shaped, responses, m.frequency_hz)) for m in modes]
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
     undetermined.sort(key=lambda u: RIGID_LABELS.index(u.label))
     rejected = _rejected(peaks, fdd, modes, lines)
