@@ -280,21 +280,20 @@ def pair_shapes(fit: list, modes, p: CarParameters, sensors) -> tuple[list, dict
     mac = mac_matrix(A, B)
     excluded = [s.name for s in sensors if s.name not in by_name]
     matrix = {"identified": [m.label for m in shaped], "model": [m.name for m, _ in model],
-              "model_hz": [m.frequency_hz for m, _ in model], "channels": list(names),
+              "model_pole_hz": [m.frequency_hz for m, _ in model], "channels": list(names),
               "values": [[float(v) for v in row] for row in mac], "excluded_channels": excluded,
-              "note": "complex MAC of displacement shapes at the response channels; axle-box channels are the "
-                      "rail input, not a response of the car, and are excluded"}
+              "note": "complex MAC of displacement shapes at the response channels against the model's damped "
+                      "modes (model_pole_hz: |lambda| / 2 pi); axle-box channels are the rail input, not a response "
+                      "of the car, and are excluded"}
     out = []
     for r in fit:
         i = next((k for k, m in enumerate(shaped) if m.label == r["label"]), None)
         j = next((k for k, (m, _) in enumerate(model) if m.label == r["label"]), None)  # the lowest: in phase
-        size = np.abs(B[:, j]) if j is not None else np.zeros(len(names))
-        moving = [n for n, v in zip(names, size) if v >= MOVING_SHARE * size.max()] if j is not None else []
         if i is None or j is None:
             note = "no identified shape for this mode"
         elif len(names) < 2:
             note = f"one response channel ({names[0]}): a MAC over one entry is 1 for any shape"
-        elif len(moving) < 2:
+        elif len(moving := [n for n, v in zip(names, np.abs(B[:, j])) if v >= MOVING_SHARE * max(abs(B[:, j]))]) < 2:
             note = (f"in the model this mode moves {moving[0]} alone (the other channels less than "
                     f"{MOVING_SHARE:.0%} of it): a MAC then weighs only the identified shape's share on that "
                     f"channel ({mac[i, j]:.3f} in the matrix), not its shape")
