@@ -124,7 +124,8 @@ def calibrated(tmp_path_factory):
 def test_the_calibrated_cars_modes_pair_with_the_identified_shapes(calibrated):
     """Expected before the run (read off an exploratory run of the same seed with the truth's
     parameters): carbody bounce 0.99, carbody pitch 0.97, bogie pitch 1.00, each at least 0.8,
-    and every other entry of the three pairs' rows and columns under 0.1. The bogie bounce has
+    and the other entries among the three pairs at most 0.01 (the bogie pitch's anti-phase
+    twin is left out: on one bogie's sensors it is the in-phase member's shape). The bogie bounce has
     no MAC: the in-phase bounce moves only the bogie accelerometer (the gyro not at all, the
     floor by 2 %), and its FDD shape is the bogie pitch's (near v / 4 L_b the wheelbase filter
     takes the rail's bounce out of the bogie's input), MAC 0.13 against the bounce."""
