@@ -17,7 +17,7 @@ from a run. The constrained refinement of issue 3 (CasADi) is what should start 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,8 @@ import numpy as np
 from .data.campaign import read_input_file
 from .data.errors import InputError
 from .models.batch import MASS_NAMES, STIFFNESS_NAMES, LinearFamily
+from .models.car2d import build_car
+from .models.channel_shapes import model_shapes, response_channels
 from .models.parameters import CarParameters
 from .models.vehicles import INTERCITY_TRAILER
 from .optimisers import OPTIMISERS, SearchParameter
@@ -33,6 +35,7 @@ from .optimisers.cross_entropy import SEED_TABLE7
 from .optimisers.identifiability import identifiability
 from .optimisers.objectives import OBJECTIVES
 from .optimisers.refine import refine
+from .signals.modal import mac_matrix
 
 LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 SEARCHABLE = MASS_NAMES + STIFFNESS_NAMES
@@ -114,6 +117,7 @@ class CalibrationResult:
     identifiability: dict = field(default_factory=dict)
     refinement: dict | None = None
     search: dict = field(default_factory=dict)  # each parameter's search range [low, high] (None: open)
+    mac_matrix: dict | None = None  # identified x model modes at the response channels (a campaign's)
 
     @property
     def max_error_pct(self) -> float:
@@ -123,7 +127,7 @@ class CalibrationResult:
         return {"model": "car2d", "method": self.method, "objective": self.objective,
                 "parameters": self.parameters.as_dict(), "fit": self.fit, "max_error_pct": self.max_error_pct,
                 "identifiability": self.identifiability, "refinement": self.refinement, "search": self.search,
-                "runs": self.runs}
+                "mac_matrix": self.mac_matrix, "runs": self.runs}
 
 
 def _history(r) -> dict:
@@ -192,7 +196,7 @@ def calibrate_car(targets: dict[str, float], search: tuple[SearchParameter, ...]
     sigma = [sigma_f[k] for k in targets] if isinstance(sigma_f, dict) else sigma_f
     ident = identifiability(family, mean, tuple(targets), sigma_f=sigma, low=low, high=high).to_json()
     ranges = {p.name: [p.low, p.high] for p in search}
-    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement, ranges)
+    return CalibrationResult(method, objective, dict(targets), final, results, fit, ident, refinement, search=ranges)
 
 
 SEED_TABLE4 = {"carbody_bounce": 1.08, "carbody_pitch": 2.19, "bogie_bounce": 6.53, "bogie_pitch": 4.31}
@@ -245,4 +249,58 @@ def calibrate_campaign(campaign, *, method: str = "ce", objective: str = "sse", 
     base = prior_parameters(campaign)
     result = calibrate_car(targets, search, base=base, method=method, objective=objective, runs=runs, seed=seed,
                            refine_result=refine_result, sigma_f=mode_uncertainties(modes))
-    return result, modes
+    fit, matrix = pair_shapes(result.fit, modes, result.parameters, campaign.meta.sensors)
+    return replace(result, fit=fit, mac_matrix=matrix), modes
+
+
+#: A channel moves in a model mode when its entry is at least this share of the mode's largest.
+#: A mode that moves one channel alone has a MAC that only weighs how much of the identified
+#: shape lies on that channel (any shape concentrated there scores near 1), not a shape.
+MOVING_SHARE = 0.1
+
+
+def pair_shapes(fit: list, modes, p: CarParameters, sensors) -> tuple[list, dict | None]:
+    """(``fit`` with each row's ``mac``, the MAC matrix or None): the identified modes' shapes
+    (:mod:`.identification.shapes`) against the damped modes of the car ``p`` at the same
+    response channels (:mod:`.models.channel_shapes`; axle boxes are the rail input, not a
+    response, and are not among them). A row's MAC is None, with ``mac_note`` saying why,
+    where the identification gives no shape, the shape has one channel, or the paired model
+    mode moves one channel only (:data:`MOVING_SHARE`)."""
+    shaped = [m for m in modes if m.label in LABELS and m.shape is not None]
+    if not shaped:
+        return [{**r, "mac": None, "mac_note": "the identification gives no mode shape"} for r in fit], None
+    names = shaped[0].shape.channels
+    by_name = {c.name: c for c in response_channels(sensors, L_v=p.L_v, L_b=p.L_b)}
+    if not set(names) <= set(by_name):
+        raise InputError(f"the identified shapes' channels {', '.join(sorted(set(names) - set(by_name)))} are not "
+                         "response channels of this campaign", key="modes[0].shape.channels")
+    # the identification's levers, so that both shapes weigh a pitch alike
+    channels = tuple(replace(by_name[n], lever=lever) for n, lever in zip(names, shaped[0].shape.levers))
+    model = model_shapes(build_car(p), channels)
+    A = np.array([m.shape.values for m in shaped]).T  # (channels, identified)
+    B = np.array([v for _, v in model]).T  # (channels, model modes)
+    mac = mac_matrix(A, B)
+    excluded = [s.name for s in sensors if s.name not in by_name]
+    matrix = {"identified": [m.label for m in shaped], "model": [m.name for m, _ in model],
+              "model_pole_hz": [m.frequency_hz for m, _ in model], "channels": list(names),
+              "values": [[float(v) for v in row] for row in mac], "excluded_channels": excluded,
+              "note": "complex MAC of displacement shapes at the response channels against the model's damped "
+                      "modes (model_pole_hz: |lambda| / 2 pi); axle-box channels are the rail input, not a response "
+                      "of the car, and are excluded"}
+    out = []
+    for r in fit:
+        i = next((k for k, m in enumerate(shaped) if m.label == r["label"]), None)
+        j = next((k for k, (m, _) in enumerate(model) if m.label == r["label"]), None)  # the lowest: in phase
+        if i is None or j is None:
+            note = "no identified shape for this mode"
+        elif len(names) < 2:
+            note = f"one response channel ({names[0]}): a MAC over one entry is 1 for any shape"
+        elif len(moving := [n for n, v in zip(names, np.abs(B[:, j])) if v >= MOVING_SHARE * max(abs(B[:, j]))]) < 2:
+            note = (f"in the model this mode moves {moving[0]} alone (the other channels less than "
+                    f"{MOVING_SHARE:.0%} of it): a MAC then weighs only the identified shape's share on that "
+                    f"channel ({mac[i, j]:.3f} in the matrix), not its shape")
+        else:
+            out.append({**r, "mac": float(mac[i, j]), "mac_model_mode": model[j][0].name})
+            continue
+        out.append({**r, "mac": None, "mac_note": note})
+    return out, matrix

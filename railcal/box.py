@@ -106,7 +106,7 @@ def calibrate(args) -> str:
     else:
         result = _calibrate_typed_targets(args, settings, swarms)
         out = result.to_json()
-    png = write_calibration(out, args.out)
+    figures = write_calibration(out, args.out)
     pso = result.pso
     runs = pso.get("swarms", ())
     ends = ", ".join(f"{r['end_max_error_pct']:.3g} %" for r in runs)
@@ -116,7 +116,7 @@ def calibrate(args) -> str:
             f"{pso['best_full_pct']:.3g} %{' -> refined' if result.refinement else ''} to "
             f"{result.max_error_pct:.3g} % over {len(result.fit)} modes, MAC >= "
             f"{min(r['mac'] for r in result.fit):.3f}{unsound_note(result.fit)}; "
-            f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
+            f"{result.identifiability['summary']}; wrote {names(args.out, *figures)}")
 
 
 def unsound_note(fit) -> str:

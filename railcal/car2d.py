@@ -116,23 +116,23 @@ def calibrate(args) -> str:
                                            identified=identified, progress=progress_for(args))
         out = result.to_json()
         out["identified_modes"] = [m.to_json() for m in modes]
-        png = write_calibration(out, args.out)
+        figures = write_calibration(out, args.out)
         n = len(result.targets)
         return (f"calibrated to {n} identified mode{'s' * (n != 1)} ({', '.join(result.targets)}): "
                 f"max error {result.max_error_pct:.3g} %; "
-                f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
+                f"{result.identifiability['summary']}; wrote {names(args.out, *figures)}")
     targets = read_targets(args.targets)
     search = read_priors(args.priors) if args.priors else DEFAULT_SEARCH
     result = calibrate_car(targets, search, method=args.method, objective=args.objective, runs=args.runs,
                            seed=args.seed, refine_result=args.refine)
-    png = write_calibration(result.to_json(), args.out)
+    figures = write_calibration(result.to_json(), args.out)
     refined = ""
     if result.refinement is not None:
         refined = (" after CasADi refinement" if result.refinement["improved"]
                    else " (refinement did not improve; global result kept)")
     within = "" if args.priors else " within the seed's Table 7 ranges (intercity trailer car)"
     return (f"{args.method} x {args.runs} runs{within}{refined}: max error {result.max_error_pct:.3g} %; "
-            f"{result.identifiability['summary']}; wrote {names(args.out, png)}")
+            f"{result.identifiability['summary']}; wrote {names(args.out, *figures)}")
 
 
 def validate(campaign, calibration: dict, args, figures) -> str:

@@ -121,9 +121,10 @@ def cmd_modes(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    check_outputs([args.out, Path(args.out).with_suffix(".png")],
-                  inputs=[args.campaign, args.targets, args.priors, args.identification])
     model = model_named(args.model)
+    png = Path(args.out).with_suffix(".png")
+    check_outputs([args.out, png, *(png.with_name(png.stem + s + ".png") for s in model.calibration_figures)],
+                  inputs=[args.campaign, args.targets, args.priors, args.identification])
     if args.campaign is not None and args.priors is not None:
         raise InputError("a campaign brings its own [priors.NAME]; --priors goes with --targets", key="--priors")
     if args.identification is not None and args.campaign is None:

@@ -92,11 +92,30 @@ def read_identification(path, campaign, parse):
         return parse(data)
 
 
-def write_calibration(out: dict, path) -> Path | None:
-    """Write the calibration file ``out`` at ``path`` with its search's convergence figure
-    beside it (.png, :mod:`calibration.convergence_plots`); returns the figure's path."""
+def write_calibration(out: dict, path) -> list[Path]:
+    """Write the calibration file ``out`` at ``path`` with its figures beside it: the search's
+    convergence (.png, :mod:`calibration.convergence_plots`) and, when ``out`` has a MAC matrix,
+    the matrix (``_mac.png``, listed under ``plots``). Returns the figures' paths."""
     from calibration.convergence_plots import plot_convergence
 
     png = plot_convergence(out, Path(path).with_suffix(".png"))
+    figures = [] if png is None else [png]
+    matrix = out.get("mac_matrix")
+    if matrix:
+        from calibration.identification.plots import plot_mac
+
+        mac = plot_mac(matrix["values"], matrix["identified"], matrix["model"], mac_figure(path),
+                       y_name="identified mode", x_name="calibrated model's mode")
+        figures.append(mac)
+        out = {**out, "plots": [*(out.get("plots") or []), mac.name]}
     write_result(path, {**out, "plot": None if png is None else str(png)}, "calibration")
-    return png
+    return figures
+
+
+MAC_FIGURE = "_mac"  # the suffix of a calibration's MAC matrix figure
+
+
+def mac_figure(path) -> Path:
+    """The MAC matrix figure of the calibration file at ``path``."""
+    path = Path(path)
+    return path.with_name(path.stem + MAC_FIGURE + ".png")

@@ -12,6 +12,7 @@ from calibration.data.errors import InputError
 from fmu_src.export import box_fmu_spec, car2d_fmu_spec
 
 from . import box, car2d
+from .common import MAC_FIGURE
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -25,6 +26,8 @@ class VehicleModel:
     identification_figure : the suffix of the second figure, written beside the first.
     modes(args) -> dict : the eigen-analysis of ``railcal modes``.
     calibrate(args) -> summary : calibrate to a campaign or to typed targets, write the file.
+    calibration_figures : the suffixes of the figures ``calibrate`` may write beside its
+        convergence figure (:func:`railcal.common.write_calibration`).
     validate(campaign, calibration, args, figures) -> summary : compare the calibrated model with
         the campaign, write the JSON and its figures at ``figures`` (the first, then one per
         :attr:`validation_figures` suffix: the command names them all before any is written).
@@ -48,6 +51,7 @@ class VehicleModel:
     identification_figure: str
     modes: Callable
     calibrate: Callable
+    calibration_figures: tuple[str, ...]
     validate: Callable
     validation_figures: tuple[str, ...]
     diagnose: Callable
@@ -102,14 +106,14 @@ def _box_example() -> dict:
 MODELS: dict[str, VehicleModel] = {m.name: m for m in (
     VehicleModel(name="car2d", description="the 2D car: carbody, two bogies, four wheelsets (in-service seed)",
                  campaign_kind="in_service", identify=car2d.identify, identification_figure="_spectra",
-                 modes=car2d.modes, calibrate=car2d.calibrate,
+                 modes=car2d.modes, calibrate=car2d.calibrate, calibration_figures=(MAC_FIGURE,),
                  validate=car2d.validate, validation_figures=("_runs",), diagnose=_diagnose_in_service,
                  diagnosis_figures=("_residual_psd", "_speed_map"), fmu_spec=car2d_fmu_spec,
                  crosscheck=car2d.crosscheck, crosscheck_figure=True, example_calibration=_car_example),
     VehicleModel(name="box", description="the box-type vehicle: flexible carbody on its suspension (carbody seed)",
                  campaign_kind="stationary_excitation", identify=box.identify, identification_figure="_mac",
                  modes=box.modes,
-                 calibrate=box.calibrate, validate=box.validate, validation_figures=("_phase",),
+                 calibrate=box.calibrate, calibration_figures=(), validate=box.validate, validation_figures=("_phase",),
                  diagnose=_diagnose_excitation,
                  diagnosis_figures=("_frf", "_mac"), fmu_spec=box_fmu_spec, crosscheck=box.crosscheck,
                  crosscheck_figure=False, example_calibration=_box_example),

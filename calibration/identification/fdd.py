@@ -36,6 +36,7 @@ import scipy.signal
 from .. import checks
 from ..data.campaign import Campaign, CampaignMeta, Run
 from ..signals.filters import SEED_BAND_HZ, SEED_ORDER, bandpass
+from ..signals.peaks import parabolic_shift
 from ..signals.resample import is_regular, regular_run, to_uniform_grid
 
 
@@ -369,6 +370,40 @@ def _prepare_segment(run: Run, d: np.ndarray, seg: Segment, names, derived, sett
     if a < 0 or b - a < int(round(settings.welch_s * fs_a)):
         return None, "segment shorter than one Welch window"
     return (xr[:, a:b], fs_a, speed), ""
+
+
+def fdd_peaks(f: np.ndarray, sv1: np.ndarray, prominence: float, *, smooth_hz: float = 0.1,
+              span: float = 1.5, ripple_factor: float = 5.0) -> list[tuple[float, float]]:
+    """(frequency [Hz], prominence [decades]) of the peaks of a summed first singular value.
+
+    The log spectrum is smoothed over ``smooth_hz``. A peak's prominence is measured
+    within [f / span, f * span] (a damped mode is as wide as its frequency times its
+    damping, and a broad rising trend is not a peak) and must exceed both
+    ``prominence`` and ``ripple_factor`` times the spectrum's own ripple (robust spread
+    of the log spectrum about its 1 Hz running mean), so the threshold follows how
+    many FDDs were summed. A peak whose neighbourhood reaches past the analysed band is
+    not reported: near the band edges a rising spectrum meets the band-pass filter's
+    skirt and makes a maximum that is the filter's, not the vehicle's.
+    """
+    df = f[1] - f[0]
+    y = np.log10(np.maximum(sv1, 1e-300))
+    ys = scipy.ndimage.uniform_filter1d(y, max(1, int(round(smooth_hz / df))), mode="nearest")
+    trend = scipy.ndimage.uniform_filter1d(y, max(3, int(round(1.0 / df))), mode="nearest")
+    ripple = 1.4826 * float(np.median(np.abs(ys - trend - np.median(ys - trend))))
+    threshold = max(prominence, ripple_factor * ripple)
+    out = []
+    for i in scipy.signal.find_peaks(ys)[0]:
+        if f[i] / span < f[0] or f[i] * span > f[-1]:
+            continue
+        lo = int(np.searchsorted(f, f[i] / span))
+        hi = int(np.searchsorted(f, f[i] * span))
+        left, right = ys[lo:i + 1], ys[i:hi]
+        if left.max() > ys[i] or right.max() > ys[i] or lo >= i or hi <= i + 1:
+            continue  # not the highest point of its neighbourhood, or at the band edge
+        prom = ys[i] - max(left.min(), right.min())
+        if prom >= threshold:
+            out.append((float(f[i] + parabolic_shift(y, int(i)) * df), float(prom)))
+    return out
 
 
 class _Sum:

@@ -23,11 +23,9 @@ axle-box sensors, FDD peaks are labelled by frequency order against the prior mo
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.ndimage
-import scipy.signal
 
 import warnings
 
@@ -37,17 +35,18 @@ from ..data.errors import CampaignError
 from ..data.outputs import result_label, result_number, result_rows
 from ..data.units import SI_UNIT
 from ..models.car2d import build_car, frequencies_by_label, undamped_modes
+from ..models.channel_shapes import response_channels
 from ..models.parameters import CAR_PARAMETER_SPECS, CarParameters, ParameterError
 from ..models.vehicles import INTERCITY_TRAILER
 from ..signals.noise_floor import NoiseFloorSettings, WelchSums
-from ..signals.peaks import parabolic_shift
 from ..signals.resample import regular_run
 from ..signals.spectral_lines import LineSettings, LineWindowCollector, SpectralLine
-from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, plan_analyses,
-                  plan_segments)
+from .fdd import (Analysis, FDDSettings, SegmentalFDD, SegmentalFDDAccumulator, derived_channels, fdd_peaks,
+                  plan_analyses, plan_segments)
 from .data_quality import noise_band, run_report
 from .frf import Pole, fit_poles, h1
 from .prior_range import damping_outside, outside, prior_damping_ranges, prior_frequency_ranges
+from .shapes import SHAPE_ANALYSIS, ModeShape, mode_shape, shape_analysis
 
 RIGID_LABELS = ("carbody_bounce", "carbody_pitch", "bogie_bounce", "bogie_pitch")
 #: Above this damping ratio a mode's response has no resonance peak (a single degree of
@@ -116,9 +115,10 @@ class IdentifiedMode:
     fdd_peak_hz: float | None  # the seed-faithful FDD estimate, where a peak was found
     prior_hz: float | None  # the prior model's frequency, for reference
     frequency_std_hz: float | None = None  # delete-one-journey jackknife standard error
+    shape: ModeShape | None = None  # at the response channels, :mod:`.shapes`
 
     def to_json(self) -> dict:
-        return dict(self.__dict__)
+        return {**self.__dict__, "shape": None if self.shape is None else self.shape.to_json()}
 
     @classmethod
     def from_json(cls, row: dict, where: str) -> "IdentifiedMode":
@@ -128,7 +128,7 @@ class IdentifiedMode:
                   for k in ("frequency_hz", "damping_ratio", "damped_frequency_hz", "fdd_peak_hz", "prior_hz")}
         std = result_number(row, "frequency_std_hz", where, optional=True)
         return cls(label=label, method=str(row.get("method", "")), source=str(row.get("source", "")),
-                   frequency_std_hz=std, **number)
+                   frequency_std_hz=std, shape=ModeShape.from_json(row.get("shape"), f"{where}.shape"), **number)
 
 
 def identified_modes_from_json(data: dict) -> tuple[IdentifiedMode, ...]:
@@ -248,40 +248,6 @@ def prior_parameters(campaign: Campaign) -> CarParameters:
                             key="priors / vehicle") from None
 
 
-def fdd_peaks(f: np.ndarray, sv1: np.ndarray, prominence: float, *, smooth_hz: float = 0.1,
-              span: float = 1.5, ripple_factor: float = 5.0) -> list[tuple[float, float]]:
-    """(frequency [Hz], prominence [decades]) of the peaks of a summed first singular value.
-
-    The log spectrum is smoothed over ``smooth_hz``. A peak's prominence is measured
-    within [f / span, f * span] (a damped mode is as wide as its frequency times its
-    damping, and a broad rising trend is not a peak) and must exceed both
-    ``prominence`` and ``ripple_factor`` times the spectrum's own ripple (robust spread
-    of the log spectrum about its 1 Hz running mean), so the threshold follows how
-    many FDDs were summed. A peak whose neighbourhood reaches past the analysed band is
-    not reported: near the band edges a rising spectrum meets the band-pass filter's
-    skirt and makes a maximum that is the filter's, not the vehicle's.
-    """
-    df = f[1] - f[0]
-    y = np.log10(np.maximum(sv1, 1e-300))
-    ys = scipy.ndimage.uniform_filter1d(y, max(1, int(round(smooth_hz / df))), mode="nearest")
-    trend = scipy.ndimage.uniform_filter1d(y, max(3, int(round(1.0 / df))), mode="nearest")
-    ripple = 1.4826 * float(np.median(np.abs(ys - trend - np.median(ys - trend))))
-    threshold = max(prominence, ripple_factor * ripple)
-    out = []
-    for i in scipy.signal.find_peaks(ys)[0]:
-        if f[i] / span < f[0] or f[i] * span > f[-1]:
-            continue
-        lo = int(np.searchsorted(f, f[i] / span))
-        hi = int(np.searchsorted(f, f[i] * span))
-        left, right = ys[lo:i + 1], ys[i:hi]
-        if left.max() > ys[i] or right.max() > ys[i] or lo >= i or hi <= i + 1:
-            continue  # not the highest point of its neighbourhood, or at the band edge
-        prom = ys[i] - max(left.min(), right.min())
-        if prom >= threshold:
-            out.append((float(f[i] + parabolic_shift(y, int(i)) * df), float(prom)))
-    return out
-
-
 def _static_sign(pole: Pole, f: np.ndarray, H: np.ndarray) -> float:
     """Sign of a mode's quasi-static contribution, from a one-pole fit of H near the pole."""
     lam = pole.eigenvalue
@@ -324,6 +290,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     if not analyses:
         raise CampaignError("no vertical accelerometer on an axle box or bogie and no bogie pitch gyro: "
                             "nothing the in-service identification can use", path=toml, key="sensors")
+    responses = response_channels(meta.sensors, L_v=prior.L_v, L_b=prior.L_b)
+    shapes = shape_analysis(responses, max(a.n_fdds for a in analyses))  # the same segments as the rest
+    analyses += [shapes] if shapes else []
     # one streaming pass: each run is read once for the FDD segments and the line windows
     plan = plan_segments(campaign, max(a.n_fdds for a in analyses), settings.fdd)
     acc = SegmentalFDDAccumulator(meta, tuple(analyses), plan, settings.fdd)
@@ -351,7 +320,7 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
     have_io = have_io and IO_ANALYSIS in fdd.results
     peaks = {}
     for name, r in fdd.results.items():
-        if name == IO_ANALYSIS:
+        if name in (IO_ANALYSIS, SHAPE_ANALYSIS):
             continue
         peaks[name] = fdd_peaks(r.frequency, r.singular_values[0], settings.peak_prominence)
 
@@ -422,6 +391,9 @@ def identify_in_service(campaign: Campaign, *, settings: IdentifySettings = Iden
             modes.remove(m)
             undetermined.append(UndeterminedMode(m.label, why))
     modes, undetermined = unpaired_carbody(modes, undetermined)
+    if SHAPE_ANALYSIS in fdd.results:
+        shaped = fdd.results[SHAPE_ANALYSIS]
+        modes = [replace(m, shape=mode_shape(shaped, responses, m.frequency_hz)) for m in modes]
     modes.sort(key=lambda m: RIGID_LABELS.index(m.label))
     undetermined.sort(key=lambda u: RIGID_LABELS.index(u.label))
     rejected = _rejected(peaks, fdd, modes, lines)

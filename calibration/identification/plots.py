@@ -12,6 +12,7 @@ import numpy as np
 from ..data.outputs import save_figure  # noqa: F401  (the one saver; others import it from here too)
 from .ema import Mode, Stabilisation, band_lines
 from .in_service import InServiceIdentification
+from .shapes import SHAPE_ANALYSIS
 
 _COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_bounce": "tab:green",
             "bogie_pitch": "tab:red"}
@@ -20,7 +21,7 @@ _COLOURS = {"carbody_bounce": "tab:blue", "carbody_pitch": "tab:orange", "bogie_
 def plot_identification(result: InServiceIdentification, path, *, truth: dict | None = None) -> Path:
     """Summed singular values with the FDD picks, and the input-output FRFs with the fitted
     modes; dotted lines mark ``truth`` frequencies when given (synthetic campaigns)."""
-    panels = [n for n in result.fdd.results if n != "input_output"]
+    panels = [n for n in result.fdd.results if n not in ("input_output", SHAPE_ANALYSIS)]  # no peaks picked there
     nrows = 2 if result.frfs else 1
     fig, axes = plt.subplots(nrows, 1, figsize=(10, 4.2 * nrows), squeeze=False)
     ax = axes[0, 0]
