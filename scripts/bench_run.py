@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -38,6 +39,7 @@ def main() -> None:
     ap.add_argument("--shaker", action="store_true", help="an excitation test of the box carbody instead")
     ap.add_argument("--seed", type=int, default=None, help="default: 11 in service, 3 for --shaker")
     ap.add_argument("--effect", default=None, help="hide this effect of the catalogue, NAME[=SIZE]")
+    ap.add_argument("--keep", type=Path, default=None, help="copy the campaign and the results folder here")
     args = ap.parse_args()
     effect = parse_effect(args.effect, "stationary_excitation" if args.shaker else "in_service")
     with tempfile.TemporaryDirectory() as tmp:
@@ -67,6 +69,8 @@ def main() -> None:
             v = json.loads((out / f"{name}.json").read_text()) if (out / f"{name}.json").is_file() else {}
             if "frac_median" in v:
                 print(f"{name}: FRAC median {v['frac_median']:.3f}, least {v['frac_min']:.3f}")
+        if args.keep is not None:
+            shutil.copytree(tmp, args.keep, dirs_exist_ok=True)
 
 
 if __name__ == "__main__":
