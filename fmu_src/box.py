@@ -52,15 +52,16 @@ def data_header(r: ReducedVehicle) -> str:
 
 
 def box_variables(reduced: ReducedVehicle, zeta: float, points: tuple[tuple[Sensor, ...], Sensor], *,
-                  track_file: str | None = None, track_start: float = 0.0) -> tuple[Variable, ...]:
+                  track_file: str | None = None, track_start: float = 0.0, gain: float = 1.0) -> tuple[Variable, ...]:
     sensors, exciter = points
     v = [Variable("time", "Real", "independent", "continuous", "simulation time", "s"),
          Variable("zeta_carbody", "Real", "parameter", "tunable",
                   "damping ratio of the carbody's elastic modes (structural damping)", None, float(zeta))]
     v += rail_inputs()
-    v.append(Variable("exciter_force", "Real", "input", "continuous",
-                      f"vertical force of the exciter under the floor at {exciter.position} m (up positive)", "N",
-                      0.0, lti_input=True))
+    force = f"vertical force of the exciter under the floor at {exciter.position} m (up positive)"
+    if gain != 1.0:  # an extended model's load cell: the input is its reading, the structure takes reading / gain
+        force = f"load cell's reading of the {force[0].lower()}{force[1:]}: the force times {gain:.6g}"
+    v.append(Variable("exciter_force", "Real", "input", "continuous", force, "N", 0.0, lti_input=True))
     for k, name in enumerate(reduced.sensors):
         s = next(x for x in sensors if x.name == name)
         v.append(Variable(name, "Real", "output", "continuous",
@@ -109,7 +110,8 @@ def box_spec(calibration: dict, *, cutoff_hz: float = DEFAULT_CUTOFF_HZ, track=N
     r = box_reduced(calibration, cutoff_hz, points=points) if reduced is None else reduced
     # BOX_WHEEL_X is written with repr(), so the C reads these offsets bit for bit
     start = default_track_start(track, [float(x) for x in r.wheelset_x]) if track else 0.0
-    variables = box_variables(r, calibrated_damping(calibration), points, track_file="track.csv" if track else None,
+    variables = box_variables(r, calibrated_damping(calibration), points, gain=force_gain(calibration),
+                              track_file="track.csv" if track else None,
                               track_start=start)
     return ModelSpec("railcal_box", f"box-type vehicle (Shinkansen-type carbody: {r.n_modes} modes below "
                      f"{r.cutoff_hz:g} Hz and {r.n_carbody - r.n_modes} static-correction pseudo-modes; "

@@ -77,7 +77,7 @@ def _no_extended_model(diagnosis: Path) -> tuple[str, bool] | None:
         return None
     if not d.get("extension") and not d.get("findings"):  # in service, findings are the causes and properties
         return f"the diagnosis found {d.get('cause')}: there is no extended model, the calibrated one stands", True
-    if "parameters" not in d:  # a file written before the diagnosis wrote its extended model
+    if "parameters" not in d:  # a cause without a model to carry it (a file made by hand, say)
         return (f"the diagnosis file names {d.get('cause')} but holds no extended model (no 'parameters'): "
                 f"diagnose again to make one", False)
     return None

@@ -2,11 +2,12 @@
 unchanged, kept): the two wall times and the steps done, kept and skipped.
 
     OPENBLAS_NUM_THREADS=1 python scripts/bench_run.py [--journeys 4] [--length-km 8] [--effect NAME[=SIZE]]
-    OPENBLAS_NUM_THREADS=1 python scripts/bench_run.py --shaker [--seed 3] [--effect NAME[=SIZE]]
+    OPENBLAS_NUM_THREADS=1 python scripts/bench_run.py --shaker [--seed 3] [--effect NAME[=SIZE]] [--quick]
 
 In service: railcal's own truth, floor sensors. ``--shaker``: a stationary excitation test
 (2 x 300 s, 27 floor accelerometers) of the full-order box carbody, calibrated with
-`railcal calibrate`'s defaults (the seed's 1000 particles). ``--effect`` hides one effect of
+`railcal calibrate`'s defaults (the seed's 1000 particles); with ``--quick``, the quick demo's
+coarse box model (every panel order - 4) and its 2 swarms of 100 particles. ``--effect`` hides one effect of
 the catalogue (`railcal synth --effect`), so that the diagnosis has an extended model and the
 run makes, checks and cross-checks both FMUs.
 
@@ -26,6 +27,9 @@ import time
 from pathlib import Path
 
 from railcal.cli import main as railcal
+from railcal.demo import QUICK
+from railcal.run import run_campaign
+from calibration.data.campaign import open_campaign
 from calibration.truth.effects import parse_effect
 from calibration.truth.excitation import synth_excitation
 from calibration.truth.in_service import InServiceSettings, synth_in_service
@@ -40,12 +44,17 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=None, help="default: 11 in service, 3 for --shaker")
     ap.add_argument("--effect", default=None, help="hide this effect of the catalogue, NAME[=SIZE]")
     ap.add_argument("--keep", type=Path, default=None, help="copy the campaign and the results folder here")
+    ap.add_argument("--quick", action="store_true",
+                    help="with --shaker: the quick demo's coarse box model (panel orders - 4) and its swarm")
     args = ap.parse_args()
+    if args.quick and not args.shaker:
+        ap.error("--quick goes with --shaker")
     effect = parse_effect(args.effect, "stationary_excitation" if args.shaker else "in_service")
     with tempfile.TemporaryDirectory() as tmp:
         root, out = Path(tmp) / "c", Path(tmp) / "results"
         if args.shaker:
-            synth_excitation(root, seed=3 if args.seed is None else args.seed, effect=effect)
+            synth_excitation(root, seed=3 if args.seed is None else args.seed, effect=effect,
+                             **({"settings": QUICK.excitation} if args.quick else {}))
         else:
             synth_in_service(root, seed=11 if args.seed is None else args.seed, fmt="parquet", effect=effect,
                              settings=InServiceSettings(journeys=args.journeys,
@@ -53,7 +62,11 @@ def main() -> None:
                                                         carbody_sensors=True))
         for attempt in ("first run", "run again"):
             t0 = time.perf_counter()
-            code = railcal(["run", str(root), "--out", str(out), "--quiet"])
+            if args.quick:  # the run's step options, as the demo gives them
+                run_campaign(open_campaign(root), out, model="box", options=QUICK.run_options(), say=lambda m: None)
+                code = 0
+            else:
+                code = railcal(["run", str(root), "--out", str(out), "--quiet"])
             wall = time.perf_counter() - t0
             steps = json.loads((out / "run.json").read_text())["steps"]
             kept = sum(bool(s.get("reused")) for s in steps)

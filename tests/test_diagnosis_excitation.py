@@ -27,7 +27,8 @@ from calibration.diagnosis.excitation.detectability import Refit
 from calibration.diagnosis.excitation.least_squares import jacobian, residual
 from calibration.diagnosis.excitation.evidence import UnpairedMode
 from calibration.diagnosis.excitation.family import Family, Layout, Slots
-from calibration.diagnosis.excitation.frf import equipment_accelerance, modal_accelerance
+from calibration.diagnosis.excitation.frf import modal_accelerance
+from calibration.models.box.mount import equipment_accelerance
 from calibration.diagnosis.excitation.softening import panel_split_model
 from calibration.truth.effects import EFFECTS, UNCATALOGUED, EffectChoice, effect_spec
 from calibration.models.box.modal import ModalModel

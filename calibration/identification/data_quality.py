@@ -20,9 +20,12 @@ def run_report(run) -> dict:
     }
 
 
-def noise_band(low_hz: float, fs: float, settings: NoiseFloorSettings) -> tuple[float, float] | None:
+def noise_band(low_hz: float, fs: float, settings: NoiseFloorSettings,
+               resolution_hz: float | None = None) -> tuple[float, float] | None:
     """[Hz] the band a spectral floor is read over: from ``low_hz`` (above the modes analysed)
     to ``settings.top_fraction`` of the sampling rate ``fs`` [Hz] (below the anti-alias
-    filter's roll-off), with at least four Welch lines in it; None when there is no such band."""
+    filter's roll-off), with at least four lines of the spectrum it is read from (line spacing
+    ``resolution_hz``; default: ``settings.segment_s``'s) in it; None when there is no such band."""
     top = settings.top_fraction * fs
-    return (float(low_hz), float(top)) if top - low_hz >= 4.0 / settings.segment_s else None
+    step = 1.0 / settings.segment_s if resolution_hz is None else resolution_hz
+    return (float(low_hz), float(top)) if top - low_hz >= 4.0 * step else None

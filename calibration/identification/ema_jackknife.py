@@ -4,9 +4,9 @@ The Welch segments of all records, in time order, are split into K contiguous gr
 each group's auto- and cross-spectra are kept as sums (:func:`group_spectra`). Replicate g
 is the H1 FRF of every segment but group g's, identified again by the same estimator as
 the full data (p-LSCF over all orders, poles clustered into modes); each full-data mode is
-paired with the replicate mode of like frequency and shape (:func:`pair_modes`). Over the n
-replicates that found a mode, the jackknife standard error of its frequency and damping ratio is
-sqrt((n - 1) / n sum_i (x_i - mean x)^2) (Efron & Tibshirani, *An introduction to the
+paired with the replicate mode of like frequency and shape (:func:`pair_modes`). Over the
+replicates that found a mode, the jackknife standard error of its frequency and damping ratio
+is sqrt((G - 1) / G sum_i (x_i - mean x)^2) for G groups (Efron & Tibshirani, *An introduction to the
 bootstrap*, 1993, ch. 11; with groups, Künsch, Ann. Stat. 17 (1989) 1217-1241, whose
 blocks keep the correlation of overlapping segments inside a group). Groups of segments
 rather than records: a test is often one or two records, too few for a jackknife.
@@ -121,9 +121,11 @@ def pair_modes(modes: Sequence[Mode], found: Sequence[Mode], *, cluster_tol: flo
     return out
 
 
-def _std(x: list[float]) -> float | None:
-    n = len(x)
-    return float(np.sqrt((n - 1) / n * np.sum((np.asarray(x) - np.mean(x)) ** 2))) if n >= 3 else None
+def _std(x: list[float], groups: int) -> float | None:
+    """The delete-a-group jackknife's standard error over the replicates that found the mode,
+    scaled by (G - 1) / G for the G groups deleted: fewer replicates than groups do not make
+    each one count for more of the data."""
+    return float(np.sqrt((groups - 1) / groups * np.sum((np.asarray(x) - np.mean(x)) ** 2))) if len(x) >= 3 else None
 
 
 def jackknife_modes(spectra: GroupSpectra, modes: Sequence[Mode], identify: Callable[[np.ndarray], list[Mode]], *,
@@ -142,4 +144,4 @@ def jackknife_modes(spectra: GroupSpectra, modes: Sequence[Mode], identify: Call
                 freq[k].append(m.frequency_hz)
                 if m.damping_ratio is not None:
                     damp[k].append(m.damping_ratio)
-    return [ModeSpread(_std(fk), _std(dk), len(fk), n_g) for fk, dk in zip(freq, damp)]
+    return [ModeSpread(_std(fk, n_g), _std(dk, n_g), len(fk), n_g) for fk, dk in zip(freq, damp)]

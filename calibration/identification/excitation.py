@@ -111,13 +111,14 @@ class ExcitationMode:
         if shape.shape != (n_sensors,) or not np.all(np.isfinite(shape)) or not np.any(shape):
             raise InputError(f"shape_real and shape_imag must be {n_sensors} finite numbers (one per sensor), "
                              "not all zero", key=where)
-        n_stable = row.get("n_stable", 0)
+        n_stable, replicates = row.get("n_stable", 0), row.get("jackknife_replicates")
         return cls(label=label, frequency_hz=result_number(row, "frequency_hz", where, positive=True),
                    damping_ratio=result_number(row, "damping_ratio", where, optional=True), shape=shape,
                    n_stable=n_stable if isinstance(n_stable, int) else 0,
                    peak_picking_hz=result_number(row, "peak_picking_hz", where, optional=True),
                    frequency_std_hz=result_number(row, "frequency_std_hz", where, optional=True),
-                   damping_std=result_number(row, "damping_std", where, optional=True))
+                   damping_std=result_number(row, "damping_std", where, optional=True),
+                   replicates=replicates if isinstance(replicates, int) and not isinstance(replicates, bool) else None)
 
 
 @dataclass(frozen=True)
@@ -321,7 +322,7 @@ def noise_floors(spectra: GroupSpectra, force: str, sensors: tuple[str, ...], un
     Gff, Gfy, Gyy, n = spectra.average()
     band = (float(settings.band[0]), float(settings.band[1]))
     out = []
-    above = noise_band(settings.band[1], fs, settings.noise)
+    above = noise_band(settings.band[1], fs, settings.noise, resolution_hz=fs / settings.nperseg)
     if above is not None:
         psd = float(spectral_floor(spectra.frequency, Gff, above, n, settings.noise.percentile))
         out.append(NoiseFloor(force, units.get(force, "N"), psd, above, SPECTRAL_FLOOR, n))

@@ -6,7 +6,10 @@ sum of the calibrated box model (all modes up to 100 Hz and the static residual 
 rest, :func:`calibration.models.box.modal.modal_model`), with the identified damping ratio
 on each mode paired with a measured one and the median identified ratio on the others. A
 diagnosis's extended model (a file with an ``extension``) is paired again by mode shape
-(:func:`shape_paired_damping`), and a load cell's gain divides its FRFs.
+(:func:`shape_paired_damping`), and a load cell's gain divides its FRFs; its equipment is
+coupled to the modal model of the vehicle without it through the mount's impedance, the form
+the diagnosis fits (:mod:`calibration.models.box.mount`), which carries the mount's damper
+exactly where modal damping ratios could not.
 Per channel over the analysis band: the frequency response assurance criterion
 
     FRAC = |sum_f conj(H_meas) H_model|^2 / (sum_f |H_meas|^2 sum_f |H_model|^2)
@@ -16,15 +19,16 @@ Per channel over the analysis band: the frequency response assurance criterion
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..data.campaign import Campaign
+from ..data.campaign import Campaign, Sensor
 from ..data.errors import InputError
 from ..identification.excitation import ExcitationIdentification, identify_excitation
-from ..models.box.extended import force_gain
+from ..models.box.extended import EQUIPMENT, extension_of, force_gain
 from ..models.box.modal import modal_model
+from ..models.box.mount import equipment_accelerance
 from ..models.box.shinkansen import calibrated_box_model
 from ..signals.modal import frac, log_error_db
 
@@ -98,8 +102,19 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentifi
     if not (isinstance(calibration, dict) and "parameters" in calibration and ("fit" in calibration or extended)):
         raise InputError("not a box calibration result: it needs parameters and fit (or a diagnosis's extended "
                          "model)", key="--calibration")
-    model, params = calibrated_box_model(calibration)  # the file's factor set and extension; parameters checked
-    modal0 = modal_model(model, params, sensors=sensors, exciter=exciter)
+    ext = extension_of(calibration) if extended else None
+    mount = None
+    if ext is not None and ext[0] == EQUIPMENT:  # the equipment coupled as the diagnosis fits it (its mount damper)
+        ext_p = ext[1]
+        model, params = calibrated_box_model({k: v for k, v in calibration.items() if k != "extension"})
+        mount = Sensor("equipment_mount", "displacement", "m", "floor", "z",
+                       (ext_p["mount_x_m"], ext_p["mount_y_m"], model.panel("floor_middle").centre[2]))
+        modal0 = modal_model(model, params, sensors=(*sensors, mount), exciter=exciter, residual_points=(mount,))
+        mount_shape, modal0 = modal0.sensor_shapes[-1], replace(modal0, sensor_shapes=modal0.sensor_shapes[:-1],
+                                                                outputs=modal0.outputs[:-1])
+    else:
+        model, params = calibrated_box_model(calibration)  # the file's factor set and extension; parameters checked
+        modal0 = modal_model(model, params, sensors=sensors, exciter=exciter)
     if extended:  # the calibration's pairing is of the model before the extension: paired again here
         zeta = shape_paired_damping(modal0, ident)
         identified = {m.label: m.damping_ratio for m in ident.modes}
@@ -120,6 +135,12 @@ def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentifi
     lo, hi = ident.settings.band
     sel = (ident.frf.frequency >= lo) & (ident.frf.frequency <= hi)
     f = ident.frf.frequency[sel]
-    Hm, Ha = ident.frf.H[sel], modal.frf(f) / force_gain(calibration)  # the FRF per force as its load cell reads it
+    if mount is None:
+        Ha = modal.frf(f)
+    else:
+        Ha = equipment_accelerance(f, 2 * np.pi * modal.frequency_hz, modal.damping_ratio, modal.sensor_shapes,
+                                   modal.exciter_shape, mount_shape, ext_p["equipment_mass_kg"],
+                                   ext_p["mounting_frequency_hz"], ext_p["mounting_damping_ratio"])
+    Hm, Ha = ident.frf.H[sel], Ha / force_gain(calibration)  # the FRF per force as its load cell reads it
     return FRFComparison(ident.sensors, f, Hm, Ha, frac(Hm, Ha), log_error_db(Hm, Ha), (lo, hi),
                          ident.frf.coherence[sel])

@@ -40,7 +40,8 @@ from .equipment import MASS_RANGE, SCAN_DAMPING, mount_grid
 from .extensions import EXTENSIONS
 from .fitting import Fitted, factor_bounds
 from .force import UNIFORM
-from .frf import equipment_accelerance, level_scatter, modal_accelerance, normalised_error_lines
+from ...models.box.mount import equipment_accelerance
+from .frf import level_scatter, modal_accelerance, normalised_error_lines
 from .least_squares import jacobian
 from .softening import DIVISOR_RANGE, panel_family, softening_panels
 

@@ -12,6 +12,7 @@ from ...data.campaign import Campaign
 from ...data.errors import CampaignError, InputError
 from ...models.box import BoxModel, FactorSet
 from ...models.box.rig import point_record
+from ...models.box.shinkansen import order_change_of
 from ...progress import counter
 from ..threads import one_blas_thread
 from .baseline import baseline_start, fit_baseline, modal_damping
@@ -126,10 +127,14 @@ MODEL_KEYS = ("factor_set", "side_end_zone_m", "order_change", "sensors", "excit
 
 def extended_model_keys(campaign: Campaign, ctx: Context, given: Mapping) -> dict:
     """The extended model's calibration keys but its factors and extension: those ``given``
-    of :data:`MODEL_KEYS` (the calibration's), else the factor set the model was built from,
-    the campaign's sensors and exciter and the training part's identified modes (whose
-    damping the FMU takes)."""
+    of :data:`MODEL_KEYS` (the calibration's), else the model's panel orders, the factor set it
+    was built from, the campaign's sensors and exciter and the training part's identified
+    modes (whose damping the FMU takes). A model of other orders than the Shinkansen-type
+    vehicle's plus one step gets ``order_change`` None, which no calibration file accepts:
+    its extended model is refused, not built otherwise."""
     out = {k: given[k] for k in MODEL_KEYS if k in given}
+    if "order_change" not in out:  # a model given as such: its orders say how it was built
+        out["order_change"] = order_change_of(ctx.model.vehicle)
     if "factor_set" not in out and ctx.factors is not None:
         out["factor_set"] = ctx.factors.name
         if ctx.factors.side_end_zone:

@@ -15,7 +15,7 @@ from .basis import Modes, ReducedFRFModel
 from .context import Context
 from .family import Family, Layout
 from .fitting import Fitted, basis_at, extension_start, factor_bounds, fit_best
-from .frf import mount_impedance
+from ...models.box.mount import mount_impedance
 
 #: mass ratios (to the carbody mass) scanned: 0.5-7 %, around the effects catalogue's range
 #: of 1-5 % (docs/methods/truth-simulator.md: the search is set around the generator it is tested on)

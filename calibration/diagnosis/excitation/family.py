@@ -10,7 +10,8 @@ import scipy.optimize
 
 from ...models.box.modal import ModalSettings
 from .basis import Modes, ReducedFRFModel
-from .frf import equipment_accelerance, modal_accelerance
+from ...models.box.mount import equipment_accelerance
+from .frf import modal_accelerance
 
 #: clip (low, high) of the suspension's proportional damping estimate phi^T C phi / (2 omega)
 #: of a bogie or carbody rigid-body mode: the box model's modal model's (and so the truth

@@ -34,6 +34,9 @@ PARAMETERS = {
     FORCE: ("force_gain",),
 }
 TEXT = ("panel",)
+#: what the diagnosis writes beside them for the reader (the equipment's mass over the
+#: carbody's), accepted and not used
+INFORMATIVE = ("mass_ratio",)
 #: the equipment's rotations and horizontal motion are held (the diagnosis's mount is a
 #: vertical spring-damper); its inertia only keeps a multibody code's mass matrix regular
 EQUIPMENT_HELD = ("x", "y", "roll", "pitch", "yaw")
@@ -53,6 +56,10 @@ def extension_of(calibration: Mapping) -> tuple[str, dict] | None:
     if name not in PARAMETERS:
         raise InputError(f"extension {name!r} unknown to the box model; known: {', '.join(PARAMETERS)}",
                          key="extension.name")
+    unknown = sorted(set(given) - set(PARAMETERS[name]) - set(INFORMATIVE))
+    if unknown:
+        raise InputError(f"extension {name}: unknown parameter(s) {', '.join(map(str, unknown))}; known: "
+                         f"{', '.join(PARAMETERS[name])}", key=f"extension.{unknown[0]}")
     out = {}
     for key in PARAMETERS[name]:
         v = given.get(key)
@@ -76,16 +83,18 @@ def force_gain(calibration: Mapping) -> float:
 def floor_host(vehicle: BoxVehicle, point) -> str:
     """The first floor panel (in the vehicle's order) holding ``point``, as a floor sensor
     there is seated."""
-    for pn in vehicle.panels:
-        if pn.group != "floor":
-            continue
+    floor = [pn for pn in vehicle.panels if pn.group == "floor"]
+    for pn in floor:
         try:
             pn.local(point)
         except ValueError:
             continue
         return pn.name
-    raise InputError(f"the mount point {tuple(float(c) for c in point[:2])} m is on no floor panel",
-                     key="extension.mount_x_m")
+    x = [pn.centre[0] + s * pn.a / 2 for pn in floor for s in (-1, 1)]
+    off = "mount_x_m" if not min(x) <= point[0] <= max(x) else "mount_y_m"
+    raise InputError(f"the mount point {tuple(float(c) for c in point[:2])} m is on no floor panel "
+                     f"(x {min(x):g} to {max(x):g} m, |y| up to {max(pn.b for pn in floor) / 2:g} m)",
+                     key=f"extension.{off}")
 
 
 def extend_vehicle(vehicle: BoxVehicle, calibration: Mapping) -> BoxVehicle:

@@ -403,6 +403,13 @@ def free_carbody(vehicle: BoxVehicle) -> BoxVehicle:
     return replace(vehicle, bodies=(), links=())
 
 
+def order_change_of(vehicle: BoxVehicle) -> int | None:
+    """The ``order_change`` this vehicle's panels were built with (every order the same step
+    from :data:`ORDERS`), or None when they were not built that way."""
+    steps = {o - n for pn in vehicle.panels if pn.name in ORDERS for o, n in zip(pn.order, ORDERS[pn.name])}
+    return steps.pop() if len(steps) == 1 and len(vehicle.panels) == len(ORDERS) else None
+
+
 def shinkansen_model(order_change: int = 0) -> BoxModel:
     """The assumed Shinkansen-type vehicle, assembled; ``order_change`` is added to every
     panel order (negative: a coarse, fast model for tests)."""
