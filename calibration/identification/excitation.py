@@ -67,6 +67,9 @@ class ExcitationIdentifySettings:
     # Groups of contiguous Welch segments of the delete-one-group jackknife that gives each
     # mode's standard errors (each group costs one more identification, ~0.1 s)
     jackknife_groups: int = 10
+    # whether to run that jackknife: a step that reads the modes but not their errors (the
+    # diagnosis's splits, validation's re-identification) is spared its identifications
+    standard_errors: bool = True
     noise: NoiseFloorSettings = NoiseFloorSettings()  # the percentile, and the force's band above the analysis band
 
     def __post_init__(self):
@@ -291,7 +294,8 @@ def identify_excitation(campaign: Campaign, settings: ExcitationIdentifySettings
     units = {s.name: SI_UNIT[s.quantity] for s in meta.sensors}
     floors = noise_floors(spectra, force, sensors, units, settings, meta.sampling_rate)
     return ExcitationIdentification(sensors, tuple(modes), tuple(rejected), frf, stab, len(records), settings,
-                                    tuple(local), floors, int(spectra.counts.size) if len(spectra.counts) >= 3 else 0)
+                                    tuple(local), floors,
+                                    spectra.counts.size if spectra.counts.size >= 3 and settings.standard_errors else 0)
 
 
 def find_modes(frequency: np.ndarray, H: np.ndarray, settings: ExcitationIdentifySettings) -> list[ema.Mode]:
@@ -307,7 +311,7 @@ def mode_standard_errors(spectra: GroupSpectra, modes: list[ema.Mode], settings:
                          ) -> list[ModeSpread]:
     """Each of ``modes``' standard errors by the delete-one-group jackknife over ``spectra``
     (:mod:`.ema_jackknife`), each replicate identified by :func:`find_modes`."""
-    if spectra.counts.size < 3:
+    if spectra.counts.size < 3 or not settings.standard_errors:
         return [ModeSpread(None, None, 0, int(spectra.counts.size))] * len(modes)
     return jackknife_modes(spectra, modes, lambda H: find_modes(spectra.frequency, H, settings),
                            cluster_tol=settings.cluster_tol, bandwidth_fraction=settings.bandwidth_fraction,

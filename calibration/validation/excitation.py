@@ -25,7 +25,7 @@ import numpy as np
 
 from ..data.campaign import Campaign, Sensor
 from ..data.errors import InputError
-from ..identification.excitation import ExcitationIdentification, identify_excitation
+from ..identification.excitation import ExcitationIdentification, ExcitationIdentifySettings, identify_excitation
 from ..models.box.extended import EQUIPMENT, extension_of, force_gain
 from ..models.box.modal import modal_model
 from ..models.box.mount import equipment_accelerance
@@ -94,7 +94,8 @@ def shape_paired_damping(modal, ident: ExcitationIdentification) -> np.ndarray:
 
 
 def compare_frf(campaign: Campaign, calibration: dict, ident: ExcitationIdentification | None = None) -> FRFComparison:
-    ident = identify_excitation(campaign) if ident is None else ident
+    # the modes give the damping; their standard errors are not read here
+    ident = identify_excitation(campaign, ExcitationIdentifySettings(standard_errors=False)) if ident is None else ident
     meta = campaign.meta
     sensors = tuple(meta.sensor(n) for n in ident.sensors)
     exciter = meta.exciter()

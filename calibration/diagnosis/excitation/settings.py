@@ -15,6 +15,10 @@ def _small_swarm() -> PSOSettings:
     return PSOSettings(particles=40, iterations=40, target=0.5)
 
 
+def _modes_only() -> ExcitationIdentifySettings:
+    return ExcitationIdentifySettings(standard_errors=False)
+
+
 @dataclass(frozen=True, kw_only=True)
 class ExcitationDiagnosisSettings:
     """How an excitation test is diagnosed (SI units; frequencies in Hz).
@@ -22,7 +26,8 @@ class ExcitationDiagnosisSettings:
     Attributes
     ----------
     identify : identification of the training and held-out FRFs (H1, p-LSCF); its ``nperseg``,
-        ``band`` etc. have the meanings of :class:`calibration.identification.excitation.ExcitationIdentifySettings`.
+        ``band`` etc. have the meanings of :class:`calibration.identification.excitation.ExcitationIdentifySettings`
+        (by default without the modes' standard errors, which the diagnosis does not read).
     band : (low, high) [Hz], the FRF comparison band (inside the exciter's 5-50 Hz force band).
     pso : the baseline's particle swarm on the identified modes.
     seed : the swarm's generator seed.
@@ -48,7 +53,7 @@ class ExcitationDiagnosisSettings:
     one_channel : share of the excess misfit on one channel above which the evidence names it.
     """
 
-    identify: ExcitationIdentifySettings = field(default_factory=ExcitationIdentifySettings)
+    identify: ExcitationIdentifySettings = field(default_factory=_modes_only)
     band: tuple[float, float] = (6.0, 30.0)
     pso: PSOSettings = field(default_factory=_small_swarm)
     seed: int = 0
