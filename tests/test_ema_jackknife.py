@@ -12,6 +12,7 @@ import scipy.signal
 from calibration.identification.ema import Mode, frf_h1_records
 from calibration.identification.ema_jackknife import group_spectra, pair_modes
 from calibration.identification.excitation import ExcitationIdentifySettings, find_modes, mode_standard_errors
+from test_ema import modal_filters  # the same sampling rate (200 Hz) and discretisation
 
 FS = 200.0  # [Hz]
 F_N = np.array([9.0, 12.5, 17.0])  # [Hz]
@@ -22,25 +23,13 @@ SETTINGS = ExcitationIdentifySettings(band=(6.0, 22.0), nperseg=4096, orders=tup
                                       jackknife_groups=10)
 
 
-def _filters():
-    """Per mode, the exact discrete filter force -> modal acceleration (force linear between samples)."""
-    out = []
-    for wn, z, pf in zip(2 * np.pi * F_N, ZETA, PHI_F):
-        A = np.array([[0.0, 1.0], [-wn ** 2, -2 * z * wn]])
-        C = np.array([[-wn ** 2, -2 * z * wn]])
-        sys_d = scipy.signal.cont2discrete((A, np.array([[0.0], [pf]]), C, np.array([[pf]])), 1 / FS, method="foh")
-        b, a = scipy.signal.ss2tf(*sys_d[:4])
-        out.append((b[0], a))
-    return out
-
-
 def _test(noise: float, seed: int, seconds: float = 600.0):
     """Force [N] and accelerations [m/s^2] with white noise of ``noise`` x each one's rms."""
     rng = np.random.default_rng(seed)
     n = int(seconds * FS)
     force = scipy.signal.sosfilt(scipy.signal.butter(4, (5, 50), "bandpass", fs=FS, output="sos"),
                                  rng.standard_normal(n))
-    y = np.column_stack([scipy.signal.lfilter(b, a, force) for b, a in _filters()]) @ PHI.T
+    y = np.column_stack([scipy.signal.lfilter(b, a, force) for b, a in modal_filters(F_N, ZETA, PHI_F)]) @ PHI.T
     return force, y + noise * y.std(axis=0) * rng.standard_normal(y.shape)
 
 
