@@ -16,6 +16,13 @@ Forecast, written before the first runs with ``--effect`` (2026-11-29): in servi
 underfloor_equipment`` (seed 3), 10/10 steps done, the cause named, the extended model's FRAC
 above the calibrated one's; first runs 1.2-1.5 times the runs without an effect (the extended
 model's validation, FMU and cross-check), second runs under 3 s.
+
+Measured (code 65bd83b, the `.ci/run` clone's environment): in service with ``cog_offset``,
+10/10, named `high`, 52.4 s against 39.1 s clean (1.34x), again 3.1 s; ``--shaker --quick
+--seed 11 --effect underfloor_equipment=0.03``, 10/10, named `high`, 243.1 s, again 3.3 s;
+``--shaker --effect underfloor_equipment`` (full order, seed 3): 7/10, **`unexplained`**, the
+forecast missed, 1381.5 s (calibrate 940 s, 10.3 % off the modes; the diagnosis from that
+calibration gained 17 % with the right equipment; docs/performance.md), again 2.3 s.
 """
 from __future__ import annotations
 
