@@ -81,7 +81,8 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
         capsys.readouterr().out
     html = (out / "report.html").read_text()  # the report says how its results were made, and what was left out
     assert "How the results were made" in html and "Step crosscheck extended skipped: the diagnosis found none." in html
-    assert "not applicable (FMU checks of the extended model; exudyn cross-check of the extended model)" in html
+    assert ("not applicable (NRMSE of every validated channel, extended model; PSD error of every validated channel, "
+            "extended model; FMU checks of the extended model; exudyn cross-check of the extended model)") in html
 
 
 def test_the_extended_models_steps_are_skipped_when_there_is_none_or_its_file_holds_none(campaign, tmp_path):
