@@ -30,7 +30,7 @@ from ..models.box.extended import EQUIPMENT, extension_of, force_gain
 from ..models.box.modal import modal_model
 from ..models.box.mount import equipment_accelerance
 from ..models.box.shinkansen import calibrated_box_model
-from ..signals.modal import frac, log_error_db
+from ..signals.modal import frac, log_error_db, mac_matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,16 +75,16 @@ def shape_paired_damping(modal, ident: ExcitationIdentification) -> np.ndarray:
     mode's on the elastic model mode of largest MAC (at least :data:`PAIR_MAC`, within
     :data:`PAIR_FREQUENCY` in frequency), the pairs taken in order of MAC, one each."""
     zeta = np.full(modal.frequency_hz.size, np.nan)
+    modes = [m for m in ident.modes if m.damping_ratio is not None]
+    if not modes:
+        return zeta
+    mac = mac_matrix(np.column_stack([m.shape for m in modes]), modal.sensor_shapes)
     elastic = np.array(modal.kind) == "elastic"
     pairs = []
-    for m in ident.modes:
-        if m.damping_ratio is None:
-            continue
+    for i, m in enumerate(modes):
         for k in np.nonzero(elastic & (np.abs(modal.frequency_hz / m.frequency_hz - 1) <= PAIR_FREQUENCY))[0]:
-            v = modal.sensor_shapes[:, k]
-            mac = abs(np.vdot(m.shape, v)) ** 2 / (np.vdot(m.shape, m.shape).real * np.dot(v, v) + 1e-300)
-            if mac >= PAIR_MAC:
-                pairs.append((mac, m.label, int(k), m.damping_ratio))
+            if mac[i, k] >= PAIR_MAC:
+                pairs.append((float(mac[i, k]), m.label, int(k), m.damping_ratio))
     taken = set()
     for _, label, k, z in sorted(pairs, reverse=True):
         if label not in taken and np.isnan(zeta[k]):
