@@ -35,10 +35,16 @@ def _record(out):
     return {s["name"]: s for s in json.loads((out / "run.json").read_text())["steps"]}
 
 
-@pytest.mark.slow(seconds=60)
-def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, capsys, monkeypatch):
+@pytest.mark.slow(seconds=100)
+def test_a_campaign_written_by_hand_runs_every_step_resumes_and_leaves_no_stale_result(
+        campaign, tmp_path, capsys, monkeypatch):
+    """The whole job on a campaign written from the format's page; run again it keeps what is
+    unchanged; the steps that cannot or need not run are skipped and their results of before
+    removed."""
+    hand = tmp_path / "hand"
+    _write_by_hand(campaign, hand)
     out = tmp_path / "results"
-    assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
+    assert main(["run", str(hand), "--out", str(out), "--quiet"]) == 0, capsys.readouterr().err
     assert "10 steps done" in capsys.readouterr().out
     record = _record(out)
     assert list(record) == STEPS and all(s["status"] == "done" for s in record.values()), record
@@ -51,18 +57,28 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     # calibrate reads the identification made before it, never identifies again
     assert "--identification" in record["calibrate"]["command"]
     # every number in the report's tables is its result's, the cross-checks' and the data's included
+    html = (out / "report.html").read_text()
     parser = _Cells()
-    parser.feed((out / "report.html").read_text())
+    parser.feed(html)
     assert {path.split("/")[0] for path, _ in parser.cells} == {
         "identification", "calibration", "validation", "diagnosis", "validation_extended", "crosscheck",
         "crosscheck_extended", "fmu_baseline", "fmu_extended"}
     assert json.loads((out / "fmu_baseline.json").read_text())["verdict"] == "pass"
     for path, text in parser.cells:  # to the figures the template shows: 4, or 2 for the tiny agreements
         assert any(text == number(_at(out, path), digits) for digits in (2, 4)), (path, text)
+    assert verdict(evaluate(DEFAULTS, load_results(out))) in html
+    assert "test car; hand-written test campaign" in html  # the sign-off block names them as campaign.toml does
+    # the same measurements in other units and another layout: the same modes
+    assert main(["identify", str(campaign), "--out", str(tmp_path / "generated.json"), "--quiet"]) == 0
+    generated = {m["label"]: m["frequency_hz"] for m in json.loads((tmp_path / "generated.json").read_text())["modes"]}
+    ident = json.loads((out / "identification.json").read_text())
+    assert {m["label"] for m in ident["modes"]} == set(generated)
+    for m in ident["modes"]:
+        assert m["frequency_hz"] == pytest.approx(generated[m["label"]], rel=1e-5), m["label"]
 
     # a second run keeps every step; a removed result is made again, and what reads it
     (out / "validation.json").unlink()
-    assert main(["run", str(campaign), "--out", str(out), "--quiet"]) == 0
+    assert main(["run", str(hand), "--out", str(out), "--quiet"]) == 0
     again = _record(out)
     assert [n for n, s in again.items() if s.get("reused")] == [n for n in STEPS[:-1] if n != "validate"]
     assert again["validate"]["status"] == "done" and not again["validate"].get("reused")
@@ -71,7 +87,7 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     # their results from before (of another model) are gone
     monkeypatch.setattr("railcal.run._no_extended_model", lambda path: ("the diagnosis found none", True))
     capsys.readouterr()
-    assert main(["run", str(campaign), "--out", str(out), "--quiet", "--no-pdf"]) == 0
+    assert main(["run", str(hand), "--out", str(out), "--quiet"]) == 0
     third = _record(out)
     assert {n for n, s in third.items() if s["status"] == "skipped"} == {"validate extended", "export-fmu extended",
                                                                           "crosscheck extended"}
@@ -83,6 +99,19 @@ def test_run_does_every_step_then_resumes_only_what_changed(campaign, tmp_path, 
     assert "How the results were made" in html and "Step crosscheck extended skipped: the diagnosis found none." in html
     assert ("not applicable (NRMSE of every validated channel, extended model; PSD error of every validated channel, "
             "extended model; FMU checks of the extended model; exudyn cross-check of the extended model)") in html
+    assert (out / "report.pdf").is_file() == (pdf_available() is None)
+
+    # the track recording gone: validation cannot be done now, the run goes on and says so, and
+    # the earlier validation is not left for the report to show as current
+    shutil.rmtree(hand / "track")
+    capsys.readouterr()
+    assert main(["run", str(hand), "--out", str(out), "--quiet", "--no-pdf"]) == 0
+    record = _record(out)
+    assert record["validate"]["status"] == "failed" and "track" in record["validate"]["reason"]
+    assert record["diagnose"]["status"] == "done" and record["report"]["status"] == "done"
+    assert not (out / "validation.json").exists() and not (out / "report.pdf").exists()  # the PDF, of before
+    assert "validate (" in capsys.readouterr().out
+    assert "validation <span class=\"absent\">(not run)</span>" in (out / "report.html").read_text()
 
 
 def test_the_extended_models_steps_are_skipped_when_there_is_none_or_its_file_holds_none(campaign, tmp_path):
@@ -153,38 +182,3 @@ def _write_by_hand(source, root):
     for track in c.tracks():
         rows = "".join(f"{d:.6f},{z:.6e}\n" for d, z in zip(track.distance, track.level))
         (root / "track" / f"{track.name}.csv").write_text(f'# band = "{track.band}"\ndistance,level\n{rows}')
-
-
-@pytest.mark.slow(seconds=40)
-def test_a_campaign_written_by_hand_runs_to_its_report_and_a_step_failing_later_leaves_no_stale_result(
-        campaign, tmp_path, capsys):
-    hand = tmp_path / "hand"
-    _write_by_hand(campaign, hand)
-    out = tmp_path / "results"
-    assert main(["run", str(hand), "--out", str(out), "--quiet"]) == 0, capsys.readouterr().err
-    assert (out / "report.pdf").is_file() == (pdf_available() is None)
-    record = _record(out)
-    assert all(s["status"] == "done" for s in record.values()), record
-    # the same measurements in other units and another layout: the same modes
-    assert main(["identify", str(campaign), "--out", str(tmp_path / "generated.json"), "--quiet"]) == 0
-    generated = {m["label"]: m["frequency_hz"] for m in json.loads((tmp_path / "generated.json").read_text())["modes"]}
-    ident = json.loads((out / "identification.json").read_text())
-    assert {m["label"] for m in ident["modes"]} == set(generated)
-    for m in ident["modes"]:
-        assert m["frequency_hz"] == pytest.approx(generated[m["label"]], rel=1e-5), m["label"]
-    html = (out / "report.html").read_text()
-    assert number(ident["modes"][0]["frequency_hz"]) in html
-    assert verdict(evaluate(DEFAULTS, load_results(out))) in html
-    assert "test car; hand-written test campaign" in html  # the sign-off block names them as campaign.toml does
-
-    # the track recording gone: validation cannot be done now, the run goes on and says so, and
-    # the earlier validation is not left for the report to show as current
-    shutil.rmtree(hand / "track")
-    capsys.readouterr()
-    assert main(["run", str(hand), "--out", str(out), "--quiet", "--no-pdf"]) == 0
-    record = _record(out)
-    assert record["validate"]["status"] == "failed" and "track" in record["validate"]["reason"]
-    assert record["diagnose"]["status"] == "done" and record["report"]["status"] == "done"
-    assert not (out / "validation.json").exists() and not (out / "report.pdf").exists()  # the PDF, of before
-    assert "validate (" in capsys.readouterr().out
-    assert "validation <span class=\"absent\">(not run)</span>" in (out / "report.html").read_text()
