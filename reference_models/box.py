@@ -333,7 +333,7 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
             markerNumbers=[a, b], stiffness=list(ln.k), damping=list(ln.c),
             offset=list(np.subtract(ln.point_b, ln.point_a))))
 
-    load, keep_alive = None, [sc]
+    load, keep_alive, statics = None, [sc], {"on": False}
     if force is not None:
         tf, F = (np.asarray(v, float) for v in force)
         if tf.ndim != 1 or F.shape != tf.shape or np.any(np.diff(tf) <= 0):
@@ -341,7 +341,9 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         direction = np.eye(3)["xyz".index(exciter.direction)]
 
         def uf_force(mbs_, t, load_vector):
-            return list(np.interp(t, tf, F) * direction)
+            # the static solve below runs at its own pseudo-time (its load step's end, 1 s), not
+            # at t = 0: the equilibrium the run starts from takes the force at the first time
+            return list(np.interp(tf[0] if statics["on"] else t, tf, F) * direction)
 
         load = mbs.AddLoad(LoadForceVector(markerNumber=seat(exciter.name), loadVector=[0.0, 0.0, 0.0],
                                            loadVectorUserFunction=uf_force))
@@ -361,7 +363,10 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         # springs), which the default relative goal would chase without end
         ss.staticSolver.newton.absoluteTolerance = 1e-6
         ss.solution.file.write = False
-        if not mbs.SolveStatic(ss):
+        statics["on"] = True
+        solved = mbs.SolveStatic(ss)
+        statics["on"] = False
+        if not solved:
             raise RuntimeError("build_box_exudyn: exudyn's static solver failed on the rail levels at t = 0")
         for node in [modal, *bogie_nodes.values()]:
             q = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates)

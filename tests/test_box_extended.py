@@ -204,3 +204,26 @@ def test_a_models_order_change_is_read_off_its_panels(coarse_box_model):
     vehicle = replace(coarse_box_model.vehicle, panels=(replace(odd, order=(odd.order[0] + 1, odd.order[1])),
                                                         *coarse_box_model.vehicle.panels[1:]))
     assert order_change_of(vehicle) is None
+
+
+def test_the_cross_check_drives_the_exciter_and_gives_exudyn_the_force_the_load_cell_reading_stands_for(
+        car_track, monkeypatch):
+    """Over the track with the exciter driven by its load cell's reading: exudyn takes the
+    reading over the calibration's gain, railcal's model and the FMU take the reading and
+    divide it themselves. They agree within the cross-check's NRMSE 1e-2; exudyn given the
+    reading as the force (the gain forgotten on its side alone) does not."""
+    from railcal.crosscheck import EXCITER_READING, crosscheck_box
+
+    path, _ = car_track
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    cal = _with({"name": "force_calibration", "parameters": {"force_gain": 1.25}})
+    report = crosscheck_box(cal, table[:, 0], table[:, 1], speed=40.0, duration=0.5, cutoff_hz=40.0)
+    time_ = report["time"]
+    assert time_["exciter_reading"]["load_cell_gain"] == 1.25
+    assert time_["exciter_reading"]["rms_n"] == EXCITER_READING["rms_n"]
+    assert time_["pass"] and time_["worst_nrmse"] <= 1e-2, time_["worst_nrmse"]
+    assert all(row["fmu_vs_railcal"] <= 1e-4 for row in time_["outputs"].values())
+    monkeypatch.setattr("calibration.models.box.extended.force_gain", lambda calibration: 1.0)
+    forgot = crosscheck_box(cal, table[:, 0], table[:, 1], speed=40.0, duration=0.5, cutoff_hz=40.0,
+                            with_fmu=False)["time"]
+    assert not forgot["pass"] and forgot["worst_nrmse"] > 0.05, forgot["worst_nrmse"]
