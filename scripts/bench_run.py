@@ -30,6 +30,13 @@ names the equipment (measured: `high`, 1.47 x noise, 12 min); on fresh seeds 4 a
 two after the one that missed, drawn before any run) ``--shaker --effect
 underfloor_equipment``, full order: 10/10 steps and the equipment named on each, the
 extended model's FRAC median above the calibrated one's; first runs 20-35 min.
+
+Measured (code 710e939, the two seeds side by side): seed 4, 10/10, `high`, 698.98 kg for
+699.6, mount within 1 mm, 13.394 Hz for 13.397; FRAC median 0.170 calibrated, 0.991
+extended; 1579.1 s (calibrate 1137 s, 11.4 % off its modes; diagnose 348 s), again 3.3 s.
+Seed 5, 10/10, `high`, 695.9 kg, mount within 4 mm, 15.651 Hz for 15.651; FRAC 0.378 and
+0.997; 1564.2 s (calibrate 1136 s, 7.7 % off; diagnose 339 s), again 2.8 s. Neither
+needed the second pass (no baseline re-fit kept): forecast met on both.
 """
 from __future__ import annotations
 
