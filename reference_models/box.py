@@ -364,8 +364,10 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         ss.staticSolver.newton.absoluteTolerance = 1e-6
         ss.solution.file.write = False
         statics["on"] = True
-        solved = mbs.SolveStatic(ss)
-        statics["on"] = False
+        try:
+            solved = mbs.SolveStatic(ss)
+        finally:
+            statics["on"] = False
         if not solved:
             raise RuntimeError("build_box_exudyn: exudyn's static solver failed on the rail levels at t = 0")
         for node in [modal, *bogie_nodes.values()]:

@@ -55,10 +55,8 @@ def _refit_baseline(ctx: Context, base: Fitted, held: HeldOut,
 
 def _refit_hypotheses(ctx: Context, base: Fitted, held: HeldOut, fits: dict[str, Fitted]) -> dict[str, Fitted]:
     """The hypotheses were fitted from a baseline that a re-fit has since left for a better
-    basin: their scans and starts described the old one (a baseline at 1890 x noise, whose
-    equipment scan put every mount at the floor's edge, was re-fitted to 1050 from the
-    equipment's factors). Each is fitted again from the new baseline, and the better fit of
-    the two on the training part kept."""
+    basin, so their scans and starts described the old one: each is fitted again from the
+    new baseline, and the better fit of the two on the training part kept."""
     out = {}
     for name, old in fits.items():
         new = EXTENSIONS[name].fit(ctx, base)[0]
@@ -111,6 +109,10 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
     base, held, restarts = _refit_baseline(ctx, base, held, fits)
     if any(r.kept for r in restarts):
         fits = _refit_hypotheses(ctx, base, held, fits)
+        # the fits made again must not be credited with a basin of the baseline's either (one more
+        # re-fit of the baseline, the hypotheses not fitted a third time)
+        base, held, again = _refit_baseline(ctx, base, held, fits)
+        restarts += again
     hypotheses = tuple(judge(ctx, EXTENSIONS[name], f, held.error) for name, f in fits.items())
     per_channel = {n: float(v) for n, v in zip(ctx.sensors, held.error)}
     one = confined_channel(per_channel, s)
