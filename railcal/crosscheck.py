@@ -205,8 +205,8 @@ def crosscheck_box(calibration: dict, distance: np.ndarray, level: np.ndarray, *
     from fmu_src.box import box_reduced, box_spec, calibrated_damping
     from fmu_src.reference import box_reference
 
-    from reference_models.box import (eigen_errors as box_eigen_errors, build_box_exudyn, carbody_modes, exudyn_frequencies,
-                      full_frequencies, reduced_frequencies, simulate_box_exudyn)
+    from reference_models.box import (build_box_exudyn, carbody_modes, eigen_errors as box_eigen_errors,
+                                      exudyn_frequencies, full_frequencies, reduced_frequencies, simulate_box_exudyn)
 
     distance, level = np.asarray(distance, float), np.asarray(level, float)
     model, p = calibrated_box_model(calibration)  # the file's factor set; parameters checked (exit 2 on bad ones)
