@@ -341,8 +341,8 @@ def build_box_exudyn(vehicle_model, parameters, *, cutoff_hz: float, zeta: float
         direction = np.eye(3)["xyz".index(exciter.direction)]
 
         def uf_force(mbs_, t, load_vector):
-            # the static solve below runs at its own pseudo-time (its load step's end, 1 s), not
-            # at t = 0: the equilibrium the run starts from takes the force at the first time
+            # the static solve below runs at a pseudo-time of its own, not at t = 0: the
+            # equilibrium the run starts from takes the force at the first time
             return list(np.interp(tf[0] if statics["on"] else t, tf, F) * direction)
 
         load = mbs.AddLoad(LoadForceVector(markerNumber=seat(exciter.name), loadVector=[0.0, 0.0, 0.0],

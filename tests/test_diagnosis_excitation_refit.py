@@ -12,7 +12,7 @@ from calibration.diagnosis.excitation import diagnose as stage
 
 def test_every_hypothesis_is_fitted_again_from_the_re_fitted_baseline_and_its_better_fit_kept(monkeypatch):
     said, started_from = [], []
-    old_base, new_base = SimpleNamespace(name="old"), SimpleNamespace(name="new")
+    new_base = SimpleNamespace(name="new")
 
     def fitter(name, error_again):
         def fit(ctx, base):
