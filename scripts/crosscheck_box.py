@@ -41,7 +41,7 @@ from calibration.models.box.vehicle_reduction import reduce_vehicle  # noqa: E40
 from calibration.models.simulate import ModalSimulator  # noqa: E402
 from calibration.models.box.rig import EXCITER, SENSOR_GRID  # noqa: E402
 from calibration.models.box.shinkansen import shinkansen_model  # noqa: E402
-from calibration.truth.excitation import band_random  # noqa: E402
+from calibration.signals.filters import band_random  # noqa: E402
 from fmu_src.box import box_spec  # noqa: E402
 from fmu_src.build import build_fmu  # noqa: E402
 from fmu_src.reference import box_reference, nrmse, smooth_profile  # noqa: E402

@@ -19,7 +19,7 @@ from calibration.models.box.vehicle_reduction import reduce_vehicle
 from calibration.models.simulate import ModalSimulator
 from calibration.models.box.rig import EXCITER, SENSOR_GRID
 from calibration.models.box.shinkansen import shinkansen_model
-from calibration.truth.excitation import band_random
+from calibration.signals.filters import band_random
 from fmu_src.box import box_spec
 from fmu_src.build import build_fmu
 from fmu_src.reference import box_reference, nrmse

@@ -47,3 +47,14 @@ def bandpass(x: np.ndarray, fs: float, band=SEED_BAND_HZ, *, order: int = SEED_O
 def lowpass(x: np.ndarray, fs: float, cutoff: float, *, order: int = SEED_ORDER, axis: int = -1) -> np.ndarray:
     sos = butter_sos(order, float(cutoff), "lowpass", float(fs))
     return scipy.signal.sosfiltfilt(sos, x, axis=axis, padlen=_padlen(sos, np.shape(x)[axis]))
+
+
+def band_random(n: int, fs: float, band: tuple[float, float], rms: float, rng: np.random.Generator) -> np.ndarray:
+    """Gaussian random signal of ``n`` samples at ``fs`` [Hz] with a flat spectrum in
+    ``band`` [Hz] and none outside (FFT synthesis, so stationary from its first sample),
+    scaled to ``rms``."""
+    spectrum = np.fft.rfft(rng.standard_normal(n))
+    nu = np.fft.rfftfreq(n, 1.0 / fs)
+    spectrum[(nu < band[0]) | (nu > band[1])] = 0.0
+    x = np.fft.irfft(spectrum, n)
+    return x * (rms / x.std())

@@ -60,6 +60,7 @@ from ..models.box.modal import ModalModel, ModalSettings, modal_model
 from ..models.box.panel import Panel
 from ..models.box.rig import EXCITER, GEOMETRY, SENSOR_GRID
 from ..models.box.shinkansen import LOWEST_ORDER_CHANGE, floor_panel, shinkansen_model
+from ..signals.filters import band_random
 from ..signals.modal import mac_matrix
 from ..models.simulate import ModalSimulator
 from .effects import EffectChoice
@@ -158,16 +159,6 @@ def truth_modes(parameters: Mapping[str, float] | None = None, *, damping=None,
 
 
 # ------------------------------------------------------------------------------ runs
-def band_random(n: int, fs: float, band: tuple[float, float], rms: float, rng: np.random.Generator) -> np.ndarray:
-    """Gaussian random signal of ``n`` samples at ``fs`` [Hz] with a flat spectrum in
-    ``band`` [Hz] and none outside (FFT synthesis), scaled to ``rms``."""
-    spectrum = np.fft.rfft(rng.standard_normal(n))
-    nu = np.fft.rfftfreq(n, 1.0 / fs)
-    spectrum[(nu < band[0]) | (nu > band[1])] = 0.0
-    x = np.fft.irfft(spectrum, n)
-    return x * (rms / x.std())
-
-
 def anti_alias_sos(settings: ExcitationSettings) -> np.ndarray:
     """The logger's anti-alias low-pass (Butterworth, at the simulation rate)."""
     return scipy.signal.butter(settings.anti_alias_order, settings.anti_alias_hz, fs=settings.fs_sim, output="sos")
