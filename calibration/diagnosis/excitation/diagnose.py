@@ -53,7 +53,7 @@ def _refit_baseline(ctx: Context, base: Fitted, held: HeldOut,
     return base, held, tuple(restarts)
 
 
-def _refit_hypotheses(ctx: Context, base: Fitted, held: HeldOut, fits: dict[str, Fitted]) -> dict[str, Fitted]:
+def _refit_hypotheses(ctx: Context, base: Fitted, fits: dict[str, Fitted]) -> dict[str, Fitted]:
     """The hypotheses were fitted from a baseline that a re-fit has since left for a better
     basin, so their scans and starts described the old one: each is fitted again from the
     new baseline, and the better fit of the two on the training part kept."""
@@ -61,10 +61,8 @@ def _refit_hypotheses(ctx: Context, base: Fitted, held: HeldOut, fits: dict[str,
     for name, old in fits.items():
         new = EXTENSIONS[name].fit(ctx, base)[0]
         out[name] = new if new.train_error < old.train_error else old
-        h = judge(ctx, EXTENSIONS[name], out[name], held.error)
         ctx.say(f"{name} fitted again from the re-fitted baseline: training error "
-                f"{new.train_error / len(ctx.sensors):.2f} against {old.train_error / len(ctx.sensors):.2f}, "
-                f"held-out gain {h.gain:.1%}")
+                f"{new.train_error / len(ctx.sensors):.2f} against {old.train_error / len(ctx.sensors):.2f}")
     return out
 
 
@@ -108,7 +106,7 @@ def diagnose_excitation(campaign: Campaign, *, progress=None, model: BoxModel | 
             + ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in h.parameters.items()))
     base, held, restarts = _refit_baseline(ctx, base, held, fits)
     if any(r.kept for r in restarts):
-        fits = _refit_hypotheses(ctx, base, held, fits)
+        fits = _refit_hypotheses(ctx, base, fits)
         # the fits made again must not be credited with a basin of the baseline's either (one more
         # re-fit of the baseline, the hypotheses not fitted a third time)
         base, held, again = _refit_baseline(ctx, base, held, fits)
