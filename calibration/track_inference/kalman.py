@@ -1,0 +1,255 @@
+"""The track's longitudinal level from the calibrated car's response: a Kalman filter in
+the distance domain with a fixed-lag smoother.
+
+The state, at grid point k (the car's centre at s_k, every ``step`` metres):
+
+* the car's state x (the calibrated 2D car with its wheelsets on the rail, any extended
+  model's additions included);
+* a register z of the rail's level from just ahead of the leading wheelset to ``lag``
+  metres behind the trailing one, z[i] = r(s_k + x_1 + 2 step - i step);
+* the slope at the register's front, which with z[0] is the state of the shaping filter:
+  the profile is white noise through the published German vertical spectrum's two poles,
+  S(W) = A W_c^2 / ((W^2 + W_r^2)(W^2 + W_c^2)), discretised exactly over a step;
+* a slowly wandering offset per channel (gravity, misalignment, gyro offset and drift).
+
+Over a step the register shifts by one cell and the car moves exactly (its modes, first-
+order hold on the rail inputs) over the step's time, step / v; each wheelset's rail level
+and rate (v times the slope) are read off the register by interpolation. A bogie channel
+is C x + D u, an axle box the rail's own acceleration, v^2 r'' + a r'.
+
+Every profile point stays in the register until ``lag`` metres behind the trailing
+wheelset: its estimate when it leaves uses every measurement taken while any wheelset was
+on it and after, for as long as the car still responds to it. That is a fixed-lag
+smoother; a longer lag does not change the D1 estimate (tested). Its variance is the
+filter's for that cell.
+
+The spectrum's level and each channel's noise are not taken on trust: they are estimated
+from the data by maximum likelihood on the innovations (:func:`fit_noise`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from .. import checks
+from ..models.car2d import CarExtras, Output, build_car, state_space, wheelset_positions
+from ..models.parameters import CarParameters
+from ..models.simulate import _phi
+from ..models.track_irregularity import GERMAN_SPECTRA
+from .passes import Pass
+
+
+@dataclass(frozen=True)
+class KalmanSettings:
+    """step [m] of the distance grid; lag [m] behind the trailing wheelset at which a point's
+    estimate is read; spectrum: the published vertical spectrum shaping the profile, scaled
+    by ``roughness`` (its variance factor); noise [SI] per channel kind, the rms of the
+    measurement's misfit on the grid (sensor noise and what the model leaves out);
+    offset_walk [SI/sqrt(m)]: how fast a channel's offset may wander."""
+
+    step: float = 0.25
+    lag: float = 12.0
+    spectrum: str = "german_low"
+    roughness: float = 1.0
+    noise: dict = field(default_factory=lambda: {"bogie_acc": 0.05, "gyro": 0.002, "axle": 0.5})
+    offset_walk: dict = field(default_factory=lambda: {"bogie_acc": 2e-3, "gyro": 2e-4, "axle": 2e-2})
+
+    def __post_init__(self):
+        checks.positive(self, "step", "roughness")
+        checks.non_negative(self, "lag")
+        if self.spectrum not in GERMAN_SPECTRA:
+            raise ValueError(f"KalmanSettings.spectrum must be one of {', '.join(GERMAN_SPECTRA)}, "
+                             f"got {self.spectrum!r}")
+
+
+@dataclass(frozen=True)
+class PassProfile:
+    """A pass's inferred level ``level`` [m] with its standard deviation ``std`` [m] at
+    ``distance`` [m] along the line, and the log-likelihood of its measurements."""
+
+    run_id: str
+    distance: np.ndarray
+    level: np.ndarray
+    std: np.ndarray
+    log_likelihood: float
+    innovation_ratio: dict
+
+
+def _shaping(settings: KalmanSettings):
+    """(Phi, Q, P_inf, F) of the two-pole shaping filter over one step, state [r, r']."""
+    a, wc, wr, _ = GERMAN_SPECTRA[settings.spectrum]
+    b = np.sqrt(np.pi * a * settings.roughness) * wc  # one-sided S = (1/pi) |H|^2 for unit white noise
+    F = np.array([[0.0, 1.0], [-wr * wc, -(wr + wc)]])
+    G = np.array([[0.0], [b]])
+    h = settings.step
+    van_loan = scipy.linalg.expm(np.block([[-F, G @ G.T], [np.zeros((2, 2)), F.T]]) * h)
+    Phi = van_loan[2:, 2:].T
+    Q = Phi @ van_loan[:2, 2:]
+    P_inf = scipy.linalg.solve_continuous_lyapunov(F, -G @ G.T)
+    return Phi, 0.5 * (Q + Q.T), P_inf, F
+
+
+def _interp_rows(c: float, n: int, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows over the register giving the level, slope and curvature at fractional cell c."""
+    i = int(np.floor(c))
+    f = c - i
+    lev, slope, curv = np.zeros(n), np.zeros(n), np.zeros(n)
+    lev[i], lev[i + 1] = 1 - f, f
+    for m, w in ((i, 1 - f), (i + 1, f)):  # central differences at the two cells, interpolated
+        slope[m - 1] += w / (2 * step)
+        slope[m + 1] -= w / (2 * step)
+        curv[m - 1] += w / step ** 2
+        curv[m] -= 2 * w / step ** 2
+        curv[m + 1] += w / step ** 2
+    return lev, slope, curv
+
+
+class CarStepper:
+    """The calibrated car's exact step over ``h`` seconds with first-order hold on its eight
+    rail inputs u = [levels at wheelsets 1-4, their rates], and its outputs for the pass's
+    bogie channels: x' = Phi x + Ga u_k + Gb u_k+1, y = C x + D u."""
+
+    def __init__(self, p: CarParameters, extras: CarExtras | None, channels, gyro_gain: float = 1.0):
+        self.wheel_x = wheelset_positions(p)
+        bogie = [c for c in channels if c.kind != "axle"]
+        outputs = [Output(c.name, "acceleration" if c.kind == "bogie_acc" else "pitch_rate", "bogie1", c.x)
+                   for c in bogie]
+        ss = state_space(build_car(p, extras=extras), outputs or [Output("_", "pitch_rate", "bogie1")])
+        gains = np.array([gyro_gain if c.kind == "gyro" else 1.0 for c in bogie])[:, None]
+        self.C, self.D = (ss.C * gains, ss.D * gains) if outputs else (ss.C[:0], ss.D[:0])
+        self.A, self.B = ss.A, ss.B
+        self.lam, V = np.linalg.eig(ss.A)
+        self.V, self.Vinv = V, np.linalg.inv(V)
+        self.VinvB = self.Vinv @ ss.B
+        self.nx = ss.A.shape[0]
+
+    def step_matrices(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Phi, Ga, Gb) over ``h`` seconds (real)."""
+        e = np.exp(self.lam * h)
+        phi1, phi2 = _phi(self.lam, h)
+        return (((self.V * e) @ self.Vinv).real, ((self.V * (phi1 - phi2)) @ self.VinvB).real,
+                ((self.V * phi2) @ self.VinvB).real)
+
+
+class _Model:
+    """The filter's fixed matrices for a car and a pass's channels."""
+
+    def __init__(self, p: CarParameters, extras: CarExtras | None, channels, settings: KalmanSettings,
+                 gyro_gain: float = 1.0):
+        self.settings = settings
+        h = settings.step
+        self.car = car = CarStepper(p, extras, channels, gyro_gain)
+        xw = car.wheel_x
+        self.c = (xw[0] - xw) / h + 2.0  # wheelsets' fractional cells
+        self.N = int(np.ceil(self.c[-1] + settings.lag / h)) + 3
+        self.lag_offset = xw[0] + 2 * h - (self.N - 1) * h  # position of the last cell, from the centre
+        self.C, self.D, self.nx = car.C, car.D, car.nx
+        self.kinds = [c.kind for c in channels]
+        self.wheelset = [c.wheelset for c in channels]
+        self.nb = len(channels)
+        self.n = self.nx + self.N + 1 + self.nb
+        self.Phi_s, self.Q_s, self.P_inf, self.F_s = _shaping(settings)
+        self.rows = [_interp_rows(c, self.N, h) for c in self.c]
+        self.rows_next = [_interp_rows(c - 1, self.N, h) for c in self.c]
+
+    def inputs(self, rows, v: float) -> np.ndarray:
+        """(8, N): the rail levels and rates at the wheelsets over the register."""
+        return np.vstack([r[0] for r in rows] + [v * r[1] for r in rows])
+
+    def transition(self, h: float, v0: float, v1: float):
+        """(Phi_x, E): x' = Phi_x x + E z over a step of ``h`` seconds."""
+        Phi, Ga, Gb = self.car.step_matrices(h)
+        return Phi, Ga @ self.inputs(self.rows, v0) + Gb @ self.inputs(self.rows_next, v1)
+
+    def measurement(self, v: float, a: float) -> np.ndarray:
+        """(n_channels, n): each channel's row over the state (its offset included)."""
+        H = np.zeros((self.nb, self.n))
+        W = self.inputs(self.rows, v)
+        k = 0
+        for r, kind in enumerate(self.kinds):
+            if kind == "axle":
+                lev, slope, curv = self.rows[self.wheelset[r] - 1]
+                H[r, self.nx:self.nx + self.N] = v * v * curv + a * slope
+            else:
+                H[r, :self.nx] = self.C[k]
+                H[r, self.nx:self.nx + self.N] = self.D[k] @ W
+                k += 1
+            H[r, self.nx + self.N + 1 + r] = 1.0
+        return H
+
+    def prior(self, y0: np.ndarray, settings: KalmanSettings):
+        """Initial mean and covariance: the profile stationary with the spectrum, the car at rest
+        on it, each offset at the channel's first value."""
+        n, nx, N = self.n, self.nx, self.N
+        h = settings.step
+        P = np.zeros((n, n))
+        lags = h * np.arange(N)
+        ac = np.array([(scipy.linalg.expm(self.F_s * d) @ self.P_inf)[0, 0] for d in lags])
+        P[nx:nx + N, nx:nx + N] = scipy.linalg.toeplitz(ac)
+        cross = np.array([(scipy.linalg.expm(self.F_s * d) @ self.P_inf)[0, 1] for d in lags])
+        P[nx:nx + N, nx + N] = P[nx + N, nx:nx + N] = cross
+        P[nx + N, nx + N] = self.P_inf[1, 1]
+        P[:nx, :nx] = np.eye(nx) * 1e-4
+        x = np.zeros(n)
+        x[nx + N + 1:] = y0
+        scale = np.array([max(abs(v), 1.0) for v in y0])
+        P[nx + N + 1:, nx + N + 1:] = np.diag((0.1 * scale) ** 2)
+        return x, P
+
+
+def _predict(m: _Model, M: np.ndarray, Phi_x: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """F @ M for the state's transition F (M has the state on its first axis)."""
+    nx, N = m.nx, m.N
+    out = np.empty_like(M)
+    z = M[nx:nx + N]
+    out[:nx] = Phi_x @ M[:nx] + E @ z
+    g = M[nx + N]
+    out[nx] = m.Phi_s[0, 0] * z[0] + m.Phi_s[0, 1] * g
+    out[nx + N] = m.Phi_s[1, 0] * z[0] + m.Phi_s[1, 1] * g
+    out[nx + 1:nx + N] = z[:-1]
+    out[nx + N + 1:] = M[nx + N + 1:]
+    return out
+
+
+def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: CarExtras | None = None,
+               gyro_gain: float = 1.0) -> PassProfile:
+    """The level under the pass's leading bogie, fixed-lag smoothed."""
+    m = _Model(p, extras, ps.channels, settings, gyro_gain)
+    nx, N, nb = m.nx, m.N, m.nb
+    Y = np.column_stack([c.values for c in ps.channels])
+    R = np.array([settings.noise[k] ** 2 for k in m.kinds])
+    q_off = np.array([settings.offset_walk[k] ** 2 * settings.step for k in m.kinds])
+    x, P = m.prior(Y[0], settings)
+    K = ps.s.size
+    level, var = np.full(K, np.nan), np.full(K, np.nan)
+    loglik, nu2, s2 = 0.0, np.zeros(nb), np.zeros(nb)
+    iz, ig = nx, nx + N
+    for k in range(K):
+        H = m.measurement(ps.v[k], ps.a[k])
+        nu = Y[k] - H @ x
+        PHt = P @ H.T
+        S = H @ PHt + np.diag(R)
+        L = np.linalg.cholesky(S)
+        w = scipy.linalg.solve_triangular(L, nu, lower=True)
+        loglik -= 0.5 * (w @ w) + np.log(np.diag(L)).sum()
+        nu2 += nu * nu
+        s2 += np.diag(S)
+        G = scipy.linalg.cho_solve((L, True), PHt.T).T
+        x = x + G @ nu
+        P = P - G @ PHt.T
+        level[k], var[k] = x[iz + N - 1], P[iz + N - 1, iz + N - 1]
+        if k + 1 < K:
+            Phi_x, E = m.transition(ps.t[k + 1] - ps.t[k], ps.v[k], ps.v[k + 1])
+            x = _predict(m, x[:, None], Phi_x, E)[:, 0]
+            P = _predict(m, _predict(m, P, Phi_x, E).T, Phi_x, E)
+            P = 0.5 * (P + P.T)
+            P[iz, iz] += m.Q_s[0, 0]
+            P[iz, ig] += m.Q_s[0, 1]
+            P[ig, iz] += m.Q_s[1, 0]
+            P[ig, ig] += m.Q_s[1, 1]
+            P[ig + 1:, ig + 1:] += np.diag(q_off)
+    distance = ps.s + m.lag_offset
+    ratio = {c.name: float(nu2[r] / s2[r]) for r, c in enumerate(ps.channels)}
+    return PassProfile(ps.run_id, distance, level, np.sqrt(np.maximum(var, 0.0)), float(loglik), ratio)

@@ -1,0 +1,147 @@
+"""A campaign's journeys as passes over the line: each contiguous stretch of a run, its
+sensors resampled on a uniform distance grid of the car's centre.
+
+The inverse works in distance, where the track is stationary and the car's speed is a
+known, slowly varying coefficient. A run's distance axis is its speed integrated and
+anchored on the GPS distance (:func:`~calibration.identification.fdd.distance_axis`), as
+validation does; the channels are low-passed in time (zero phase) below the grid's
+Nyquist wavenumber at the stretch's lowest speed, then read at the grid points' times.
+
+Sensors used: the leading bogie's vertical accelerometers and pitch gyro and, when asked
+for, the leading bogie's axle boxes (the two boxes of an axle averaged, which cancels the
+axle's roll over cross level).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from ..data.campaign import Campaign
+from ..data.errors import CampaignError
+from ..identification.fdd import distance_axis
+
+#: [m/s] below this the car is stopping or standing: a stretch ends there
+MIN_SPEED = 3.0
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One measured quantity on the grid: ``kind`` 'bogie_acc' (at ``x`` [m] in the vehicle
+    frame), 'gyro' (the bogie's pitch rate) or 'axle' (wheelset ``wheelset``'s vertical
+    acceleration); SI units."""
+
+    name: str
+    kind: str
+    values: np.ndarray
+    x: float = 0.0
+    wheelset: int = 0
+
+
+@dataclass(frozen=True)
+class Pass:
+    """A stretch of one run on the distance grid ``s`` [m] (the car's centre), with the
+    grid points' times ``t`` [s], speed ``v`` [m/s] and longitudinal acceleration ``a``
+    [m/s^2]."""
+
+    run_id: str
+    s: np.ndarray
+    t: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    channels: tuple[Channel, ...]
+
+
+def _lowpass(x: np.ndarray, cutoff: float, fs: float) -> np.ndarray:
+    if cutoff >= 0.45 * fs:
+        return x
+    sos = scipy.signal.butter(4, cutoff, fs=fs, output="sos")
+    return scipy.signal.sosfiltfilt(sos, x)
+
+
+def _sensors(campaign: Campaign, axle_boxes: bool, bogie_dx: float):
+    bogie, axles = [], {}
+    for s in campaign.meta.sensors:
+        if s.body == "bogie1" and s.quantity == "acceleration" and s.direction == "z":
+            bogie.append((s.name, "bogie_acc", s.position[0] + bogie_dx, 0))
+        elif s.body == "bogie1" and s.quantity == "angular_velocity" and s.direction == "pitch":
+            bogie.append((s.name, "gyro", 0.0, 0))
+        elif axle_boxes and s.body in ("axle1", "axle2") and s.quantity == "acceleration" and s.direction == "z":
+            axles.setdefault(int(s.body[4:]), []).append(s.name)
+    return bogie, axles
+
+
+def read_passes(campaign: Campaign, *, step: float, axle_boxes: bool = False, bogie_dx: float = 0.0,
+                min_length: float = 200.0, max_lowpass: float = 40.0, progress=None) -> list[Pass]:
+    """The campaign's passes on a grid of ``step`` [m]; stretches shorter than
+    ``min_length`` [m], or where a used channel has an invalid sample, are left out (a
+    stretch is split at such samples)."""
+    if campaign.meta.kind != "in_service":
+        raise CampaignError(f"track inference needs an in-service campaign, not {campaign.meta.kind}",
+                            path=campaign.root / "campaign.toml", key="kind")
+    bogie, axles = _sensors(campaign, axle_boxes, bogie_dx)
+    if not bogie:
+        raise CampaignError("no leading-bogie vertical accelerometer or pitch gyro (body bogie1) to infer the "
+                            "track from", path=campaign.root / "campaign.toml", key="sensors")
+    if axle_boxes and not axles:
+        raise CampaignError("axle boxes asked for, but the campaign has no vertical accelerometer on axle1 or "
+                            "axle2", path=campaign.root / "campaign.toml", key="sensors")
+    names = [b[0] for b in bogie] + [n for group in axles.values() for n in group]
+    out = []
+    for run in campaign.iter_runs():
+        if run.speed is None and run.distance is None:
+            continue
+        d = distance_axis(run.distance, run.speed, run.time)
+        if run.speed is not None:  # integrated speed, anchored on the blended axis (as validation)
+            d_speed = distance_axis(None, run.speed, run.time)
+            d = d_speed + np.median(d - d_speed)
+        fs = 1.0 / float(np.median(np.diff(run.time)))
+        for a, b in run.blocks:
+            t, dd = run.time[a:b], d[a:b]
+            if t.size < 4:
+                continue
+            v = np.gradient(dd, t)
+            ok = (v > MIN_SPEED) & np.all([run.valid[n][a:b] for n in names], axis=0)
+            for i0, i1 in _runs_of(ok):
+                if dd[i1 - 1] - dd[i0] < min_length:
+                    continue
+                p = _one_pass(run, names, bogie, axles, t[i0:i1], dd[i0:i1], v[i0:i1], a + i0, fs, step,
+                              max_lowpass)
+                if p is not None:
+                    out.append(p)
+                    if progress:
+                        progress(f"infer-track: {run.run_id} {p.s[0]:.0f}-{p.s[-1]:.0f} m at "
+                                 f"{np.mean(p.v):.1f} m/s mean")
+    if not out:
+        raise CampaignError(f"no run has a stretch of at least {min_length:g} m above {MIN_SPEED:g} m/s with "
+                            f"valid {', '.join(names)}", path=campaign.root / "runs")
+    return out
+
+
+def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def _one_pass(run, names, bogie, axles, t, d, v, first, fs, step, max_lowpass) -> Pass | None:
+    grid = np.arange(d[0], d[-1], step)
+    if grid.size < 8:
+        return None
+    tg = np.interp(grid, d, t)
+    vg = np.interp(tg, t, v)
+    # slow speed changes only: the derivative of the GPS-anchored axis carries its jitter
+    sos = scipy.signal.butter(2, 0.2, fs=fs, output="sos")
+    v_smooth = scipy.signal.sosfiltfilt(sos, v) if v.size > 30 else v
+    ag = np.interp(tg, t, np.gradient(v_smooth, t))
+    cutoff = min(max_lowpass, 0.8 * float(v.min()) / (2 * step))
+    sl = slice(first, first + t.size)
+
+    def on_grid(name):
+        return np.interp(tg, t, _lowpass(run.channels[name][sl], cutoff, fs))
+
+    chans = [Channel(n, kind, on_grid(n), x=x) for n, kind, x, _ in bogie]
+    for j, group in sorted(axles.items()):
+        mean = np.mean([on_grid(n) for n in group], axis=0)
+        chans.append(Channel(f"axle{j}", "axle", mean, wheelset=j))
+    return Pass(run.run_id, grid, tg, vg, ag, tuple(chans))
