@@ -28,7 +28,7 @@ from the data by maximum likelihood on the innovations (:func:`fit_noise`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg
@@ -66,8 +66,9 @@ class KalmanSettings:
 
 @dataclass(frozen=True)
 class PassProfile:
-    """A pass's inferred level ``level`` [m] with its standard deviation ``std`` [m] at
-    ``distance`` [m] along the line, and the log-likelihood of its measurements."""
+    """A pass's inferred level ``level`` [m] with its standard deviation ``std`` [m] (all
+    wavelengths) at ``distance`` [m] along the line, the log-likelihood of its measurements
+    and each channel's mean squared innovation over its predicted variance."""
 
     run_id: str
     distance: np.ndarray
@@ -75,6 +76,7 @@ class PassProfile:
     std: np.ndarray
     log_likelihood: float
     innovation_ratio: dict
+    error_draws: np.ndarray  # (samples, draws): the estimate's error, sampled (see infer_pass)
 
 
 def _shaping(settings: KalmanSettings):
@@ -214,42 +216,88 @@ def _predict(m: _Model, M: np.ndarray, Phi_x: np.ndarray, E: np.ndarray) -> np.n
 
 
 def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: CarExtras | None = None,
-               gyro_gain: float = 1.0) -> PassProfile:
-    """The level under the pass's leading bogie, fixed-lag smoothed."""
+               gyro_gain: float = 1.0, draws: int = 8, seed: int = 0) -> PassProfile:
+    """The level under the pass's leading bogie, fixed-lag smoothed.
+
+    ``draws`` synthetic passes run through the same filter beside the measured one: each
+    draws a profile and measurements from the filter's own model (a simulation smoother,
+    Durbin and Koopman 2002), so their estimates' errors sample the estimate's error
+    distribution; filtered to a band, they give the band's standard deviation."""
     m = _Model(p, extras, ps.channels, settings, gyro_gain)
-    nx, N, nb = m.nx, m.N, m.nb
+    nx, N, nb, n = m.nx, m.N, m.nb, m.n
+    rng = np.random.default_rng(seed)
     Y = np.column_stack([c.values for c in ps.channels])
     R = np.array([settings.noise[k] ** 2 for k in m.kinds])
     q_off = np.array([settings.offset_walk[k] ** 2 * settings.step for k in m.kinds])
-    x, P = m.prior(Y[0], settings)
+    x0, P = m.prior(Y[0], settings)
+    w, U = np.linalg.eigh(P)
+    X = np.tile(x0[:, None], (1, 1 + draws))  # the estimate, then the draws' estimates
+    T = x0[:, None] + (U * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((n, draws))  # the draws' truths
+    Lq = np.linalg.cholesky(m.Q_s + 1e-30 * np.eye(2))
     K = ps.s.size
-    level, var = np.full(K, np.nan), np.full(K, np.nan)
+    level, var, err = np.full(K, np.nan), np.full(K, np.nan), np.zeros((K, draws))
     loglik, nu2, s2 = 0.0, np.zeros(nb), np.zeros(nb)
-    iz, ig = nx, nx + N
+    iz, ig, last = nx, nx + N, nx + N - 1
     for k in range(K):
         H = m.measurement(ps.v[k], ps.a[k])
-        nu = Y[k] - H @ x
+        Yk = np.column_stack([Y[k], H @ T + np.sqrt(R)[:, None] * rng.standard_normal((nb, draws))])
+        nu = Yk - H @ X
         PHt = P @ H.T
         S = H @ PHt + np.diag(R)
         L = np.linalg.cholesky(S)
-        w = scipy.linalg.solve_triangular(L, nu, lower=True)
-        loglik -= 0.5 * (w @ w) + np.log(np.diag(L)).sum()
-        nu2 += nu * nu
+        wv = scipy.linalg.solve_triangular(L, nu[:, 0], lower=True)
+        loglik -= 0.5 * (wv @ wv) + np.log(np.diag(L)).sum()
+        nu2 += nu[:, 0] ** 2
         s2 += np.diag(S)
         G = scipy.linalg.cho_solve((L, True), PHt.T).T
-        x = x + G @ nu
+        X = X + G @ nu
         P = P - G @ PHt.T
-        level[k], var[k] = x[iz + N - 1], P[iz + N - 1, iz + N - 1]
+        level[k], var[k] = X[last, 0], P[last, last]
+        err[k] = X[last, 1:] - T[last]
         if k + 1 < K:
             Phi_x, E = m.transition(ps.t[k + 1] - ps.t[k], ps.v[k], ps.v[k + 1])
-            x = _predict(m, x[:, None], Phi_x, E)[:, 0]
+            X = _predict(m, X, Phi_x, E)
+            T = _predict(m, T, Phi_x, E)
+            T[[iz, ig]] += Lq @ rng.standard_normal((2, draws))
+            T[ig + 1:] += np.sqrt(q_off)[:, None] * rng.standard_normal((nb, draws))
             P = _predict(m, _predict(m, P, Phi_x, E).T, Phi_x, E)
             P = 0.5 * (P + P.T)
-            P[iz, iz] += m.Q_s[0, 0]
-            P[iz, ig] += m.Q_s[0, 1]
-            P[ig, iz] += m.Q_s[1, 0]
-            P[ig, ig] += m.Q_s[1, 1]
+            P[np.ix_([iz, ig], [iz, ig])] += m.Q_s
             P[ig + 1:, ig + 1:] += np.diag(q_off)
     distance = ps.s + m.lag_offset
     ratio = {c.name: float(nu2[r] / s2[r]) for r, c in enumerate(ps.channels)}
-    return PassProfile(ps.run_id, distance, level, np.sqrt(np.maximum(var, 0.0)), float(loglik), ratio)
+    return PassProfile(ps.run_id, distance, level, np.sqrt(np.maximum(var, 0.0)), float(loglik), ratio, err)
+
+
+def _sub_pass(ps: Pass, length: float) -> Pass:
+    n = min(ps.s.size, max(8, int(length / float(ps.s[1] - ps.s[0]))))
+    return Pass(ps.run_id, ps.s[:n], ps.t[:n], ps.v[:n], ps.a[:n],
+                tuple(replace(c, values=c.values[:n]) for c in ps.channels))
+
+
+def fit_noise(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: CarExtras | None = None,
+              gyro_gain: float = 1.0, length: float = 800.0, rounds: int = 2) -> tuple[KalmanSettings, float]:
+    """The spectrum's level and each channel kind's noise that make the first ``length``
+    metres of ``ps`` most likely: a coordinate search in log steps (x3, then x sqrt 3) from
+    ``settings``. Returns the settings and their log-likelihood."""
+    sub = _sub_pass(ps, length)
+    kinds = sorted({c.kind for c in ps.channels})
+
+    def score(s: KalmanSettings) -> float:
+        return infer_pass(sub, p, s, extras=extras, gyro_gain=gyro_gain, draws=0).log_likelihood
+
+    def scaled(s: KalmanSettings, what: str, f: float) -> KalmanSettings:
+        if what == "roughness":
+            return replace(s, roughness=s.roughness * f * f)
+        return replace(s, noise={**s.noise, what: s.noise[what] * f})
+
+    best, best_ll = settings, score(settings)
+    for factor in (3.0, np.sqrt(3.0))[:rounds]:
+        for what in ("roughness", *kinds):
+            for f in (factor, 1.0 / factor):
+                trial = scaled(best, what, f)
+                ll = score(trial)
+                if ll > best_ll:
+                    best, best_ll = trial, ll
+                    break
+    return best, best_ll
