@@ -1,0 +1,42 @@
+"""The independent truth's line (calibration/truth/independent/irregularity.py): settled dips
+change the level under them and nothing else, and a campaign's line is rebuilt from its truth."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calibration.truth.independent.irregularity import Line, LineSpec, dip_shape
+
+DIP = (300.0, 2e-3, 12.0)  # centre, depth, length [m]
+
+
+def test_a_dip_changes_the_level_under_it_by_its_shape_and_nothing_else():
+    plain = Line(LineSpec(length=600.0), np.random.default_rng(5))
+    dipped = Line(LineSpec(length=600.0, dips=(DIP,)), np.random.default_rng(5))
+    centre, depth, length = DIP
+    diff = plain.z - dipped.z
+    inside = np.abs(plain.s - centre) < 0.5 * length
+    # the same draws: outside its span the level is the same to the bit, and the cross level everywhere
+    assert np.array_equal(plain.s, dipped.s) and np.array_equal(plain.cross, dipped.cross)
+    assert np.all(diff[~inside] == 0.0) and np.all(diff[inside] > 0.0)
+    np.testing.assert_allclose(diff[inside], dip_shape(plain.s[inside] - centre, depth, length), rtol=0, atol=1e-15)
+    # its deepest point is at the centre and as deep as asked; half-way down at a quarter length from it
+    assert plain.s[np.argmax(diff)] == pytest.approx(centre, abs=plain.spec.dx / 2)
+    assert diff.max() == pytest.approx(depth, rel=1e-9)
+    assert plain.level(centre + length / 4) - dipped.level(centre + length / 4) == pytest.approx(depth / 2, rel=1e-3)
+
+
+def test_two_dips_add_and_a_dip_of_no_depth_changes_nothing():
+    plain = Line(LineSpec(length=600.0), np.random.default_rng(5))
+    two = Line(LineSpec(length=600.0, dips=(DIP, (305.0, 1e-3, 20.0))), np.random.default_rng(5))
+    expected = dip_shape(plain.s - 300.0, 2e-3, 12.0) + dip_shape(plain.s - 305.0, 1e-3, 20.0)
+    np.testing.assert_allclose(plain.z - two.z, expected, rtol=0, atol=1e-15)
+    none = Line(LineSpec(length=600.0, dips=((300.0, 0.0, 12.0),)), np.random.default_rng(5))
+    assert np.array_equal(plain.z, none.z)
+
+
+@pytest.mark.parametrize("dips", [((300.0, -1e-3, 12.0),), ((300.0, 1e-3, 0.0),), ((np.nan, 1e-3, 12.0),),
+                                  ((300.0, 1e-3),), (300.0, 1e-3, 12.0), (("a", 1e-3, 12.0),)])
+def test_a_bad_dip_is_refused_naming_the_field(dips):
+    with pytest.raises(ValueError, match="LineSpec.dips"):
+        LineSpec(dips=dips)
