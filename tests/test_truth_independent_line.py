@@ -2,9 +2,13 @@
 change the level under them and nothing else, and a campaign's line is rebuilt from its truth."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
+from calibration.data.campaign import open_campaign
+from calibration.truth.independent import IndependentSettings, synth_in_service_independent, truth_line
 from calibration.truth.independent.irregularity import Line, LineSpec, dip_shape
 
 DIP = (300.0, 2e-3, 12.0)  # centre, depth, length [m]
@@ -40,3 +44,39 @@ def test_two_dips_add_and_a_dip_of_no_depth_changes_nothing():
 def test_a_bad_dip_is_refused_naming_the_field(dips):
     with pytest.raises(ValueError, match="LineSpec.dips"):
         LineSpec(dips=dips)
+
+
+@pytest.mark.slow(seconds=1)
+def test_truth_line_is_the_line_the_campaign_ran_over_and_recorded(tmp_path):
+    """The line drawn again from the truth file is the campaign's: the same as a line of its seed
+    and spec, and its D1 record of the recorded stretch (the dip inside it) is the campaign's
+    track recording within the recording's noise."""
+    settings = IndependentSettings(journeys=1, line=LineSpec(length=600.0, dips=(DIP,)), speed_range=(40.0, 45.0))
+    synth_in_service_independent(tmp_path / "c", seed=6, settings=settings)
+    truth = json.loads((tmp_path / "c.truth.json").read_text())
+    assert truth["line"]["dips"] == [{"centre_m": 300.0, "depth_m": 2e-3, "length_m": 12.0}]
+    line = truth_line(truth)
+    assert line.spec == settings.line
+    assert np.array_equal(line.z, Line(settings.line, np.random.default_rng(6)).z)
+
+    rec = open_campaign(tmp_path / "c").tracks()[0]
+    where = truth["line"]["track_recording"]
+    assert where["start_m"] < DIP[0] < where["start_m"] + where["length_m"]
+    d, clean = line.recording(where["start_m"], where["length_m"], noise=0.0, rng=np.random.default_rng(0))
+    assert np.allclose(d, rec.distance, atol=1e-6)
+    residual = rec.level - clean
+    noise = settings.recording_noise
+    assert 0.8 * noise < np.sqrt(np.mean(residual ** 2)) < 1.2 * noise
+    # without its dip the line misses the recording by far more than the noise
+    plain = Line(LineSpec(length=600.0), np.random.default_rng(6))
+    _, undipped = plain.recording(where["start_m"], where["length_m"], noise=0.0, rng=np.random.default_rng(0))
+    assert np.max(np.abs(rec.level - undipped)) > 10 * noise
+
+
+def test_truth_line_refuses_a_truth_without_the_whole_line_spec():
+    truth = {"simulator": "independent exudyn truth", "kind": "in_service", "seed": 0,
+             "line": {"length_m": 600.0, "spectrum": "german_low"}}
+    with pytest.raises(ValueError, match="sleeper_spacing, panel_length, weld_depth, dx, dips"):
+        truth_line(truth)
+    with pytest.raises(ValueError, match="independent exudyn truth"):
+        truth_line({**truth, "simulator": "railcal"})
