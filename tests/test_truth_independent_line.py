@@ -80,3 +80,41 @@ def test_truth_line_refuses_a_truth_without_the_whole_line_spec():
         truth_line(truth)
     with pytest.raises(ValueError, match="independent exudyn truth"):
         truth_line({**truth, "simulator": "railcal"})
+
+
+# ------------------------------------------------------------ railcal synth in-service --dip
+def _synth(args, capsys) -> tuple[int, str]:
+    from railcal.cli import main
+
+    code = main([str(a) for a in ["synth", "in-service", *args, "--journeys", "1", "--length-km", "5", "--quiet"]])
+    return code, capsys.readouterr().err
+
+
+def test_cli_dips_reach_the_line_in_metres(tmp_path, monkeypatch, capsys):
+    import calibration.truth.independent as independent
+
+    seen = {}
+
+    def fake(out, *, settings, **kw):  # the simulation itself is tested above; here only what reaches it
+        seen["settings"] = settings
+        return {"frequencies_hz": {}, "performance": {"real_time_factor": 1.0}}
+
+    monkeypatch.setattr(independent, "synth_in_service_independent", fake)
+    code, err = _synth([tmp_path / "c", "--truth", "exudyn", "--dip", "2500:3:12", "--dip", "4000:1.5:20"], capsys)
+    assert code == 0, err
+    assert seen["settings"].line.dips == ((2500.0, 3e-3, 12.0), (4000.0, 1.5e-3, 20.0))
+
+
+@pytest.mark.parametrize("dip, truth, says", [
+    ("2500:3:12", "railcal", "give --truth exudyn"),
+    ("2500:3", "exudyn", "CENTRE_M:DEPTH_MM:LENGTH_M"),
+    ("a:3:12", "exudyn", "CENTRE_M:DEPTH_MM:LENGTH_M"),
+    ("2500:-3:12", "exudyn", "depth >= 0 mm"),
+    ("2500:3:0", "exudyn", "length > 0 m"),
+    ("2500:nan:12", "exudyn", "finite"),
+    ("9000:3:12", "exudyn", "within 0..5000 m"),
+])
+def test_cli_refuses_a_bad_dip_naming_it_before_any_work(tmp_path, capsys, dip, truth, says):
+    code, err = _synth([tmp_path / "c", "--truth", truth, f"--dip={dip}"], capsys)
+    assert code == 2 and "--dip" in err and says in err and "Traceback" not in err, err
+    assert not (tmp_path / "c").exists() and not (tmp_path / "c.truth.json").exists()
