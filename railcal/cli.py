@@ -310,6 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "(flexible carbody, nonlinear suspension, discretely supported track)")
     s.add_argument("--vehicle", default=None, help="vehicle of the exudyn truth's library (default intercity; "
                    "the library and its sources: docs/methods/truth-independent.md); --truth exudyn only")
+    s.add_argument("--dip", action="append", default=None, metavar="CENTRE_M:DEPTH_MM:LENGTH_M",
+                   help="a settled dip in the line's level: a raised cosine of that centre [m], depth [mm] and "
+                        "length [m]; repeatable (default: none); --truth exudyn only")
     s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")

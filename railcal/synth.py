@@ -2,6 +2,8 @@
 the application that imports the truth simulators (calibration/truth)."""
 from __future__ import annotations
 
+import math
+
 from calibration.data.errors import InputError
 from calibration.data.outputs import check_campaign_output
 
@@ -21,6 +23,8 @@ def cmd_synth_in_service(args) -> int:
         return _synth_in_service_exudyn(args)
     if args.vehicle is not None:
         raise InputError("--vehicle chooses a vehicle of the exudyn truth; give --truth exudyn", key="--vehicle")
+    if args.dip:
+        raise InputError("--dip settles a dip in the exudyn truth's line; give --truth exudyn", key="--dip")
     effect = parse_effect(args.effect, "in_service")
     check_campaign_output(args.out, overwrite=args.force)
     settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
@@ -44,8 +48,9 @@ def _synth_in_service_exudyn(args) -> int:
         raise InputError(f"unknown vehicle {name!r}; the exudyn truth's library has {', '.join(VEHICLES)}",
                          key="--vehicle")
     effect = parse_hidden(args.effect)
+    dips = _parse_dips(args.dip or (), args.length_km * 1000.0)
     check_campaign_output(args.out, overwrite=args.force)
-    settings = IndependentSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
+    settings = IndependentSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0, dips=dips),
                                    carbody_sensors=args.carbody_sensors)
     truth = synth_in_service_independent(args.out, seed=args.seed, settings=settings, effect=effect, vehicle=name,
                                          fmt=args.format, overwrite=args.force, progress=progress_for(args))
@@ -54,6 +59,25 @@ def _synth_in_service_exudyn(args) -> int:
           f"{args.out}.truth.json; " + ", ".join(f"{k} {v:.3f} Hz" for k, v in f.items())
           + f"; real-time factor {truth['performance']['real_time_factor']:.1f}")
     return EXIT_OK
+
+
+def _parse_dips(texts, line_length: float) -> tuple[tuple[float, float, float], ...]:
+    """``--dip CENTRE_M:DEPTH_MM:LENGTH_M`` values as (centre, depth, length) [m]: the depth is
+    given in mm, as track engineers quote it, and becomes metres here once."""
+    dips = []
+    for text in texts:
+        try:
+            centre, depth_mm, length = (float(x) for x in text.split(":"))
+        except ValueError:
+            raise InputError(f"--dip takes CENTRE_M:DEPTH_MM:LENGTH_M (e.g. 2500:3:12), got {text!r}",
+                             key="--dip") from None
+        if not all(math.isfinite(x) for x in (centre, depth_mm, length)) or depth_mm < 0 or length <= 0:
+            raise InputError(f"--dip {text!r}: give finite numbers, a depth >= 0 mm and a length > 0 m", key="--dip")
+        if not 0.0 <= centre <= line_length:
+            raise InputError(f"--dip {text!r}: its centre must be on the line, within 0..{line_length:g} m",
+                             key="--dip")
+        dips.append((centre, depth_mm * 1e-3, length))
+    return tuple(dips)
 
 
 def cmd_synth_excitation(args) -> int:

@@ -368,13 +368,37 @@ def synth_in_service_independent(out, *, seed: int = 0, settings: IndependentSet
         "noise_rms_si": {"axle_boxes": s.noise[0], "bogie1_acc_z": s.noise[1], "carbody": s.noise[2],
                          "bogie1_gyro_pitch": float(np.radians(s.noise[3]))},
         "speed_dependent_wavelengths_m": {"sleeper": s.line.sleeper_spacing, "rail_panel": s.line.panel_length},
-        "line": {"length_m": s.line.length, "spectrum": s.line.spectrum,
-                 "track_recording": {"start_m": start, "length_m": rec_len, "band": "D1"}},
+        "line": {**_line_json(s.line), "track_recording": {"start_m": start, "length_m": rec_len, "band": "D1"}},
         "performance": {"simulated_s": simulated, "wall_s": wall, "real_time_factor": simulated / wall},
         "journeys": journeys,
     }
     write_json_atomic(Path(f"{out}.truth.json"), truth)
     return truth
+
+
+def _line_json(spec: LineSpec) -> dict:
+    """The line's whole spec [SI], enough with the seed to draw its line again (:func:`truth_line`)."""
+    return {"length_m": spec.length, "spectrum": spec.spectrum, "sleeper_spacing": spec.sleeper_spacing,
+            "panel_length": spec.panel_length, "weld_depth": list(spec.weld_depth), "dx": spec.dx,
+            "dips": [{"centre_m": c, "depth_m": d, "length_m": n} for c, d, n in spec.dips]}
+
+
+def truth_line(truth: dict) -> Line:
+    """The line a campaign's journeys ran over, drawn again from its truth (``out.truth.json``
+    as read by ``json.load``): its seed and line spec. The line is the first draw of the
+    campaign's generator, so nothing else of the campaign is needed."""
+    if truth.get("simulator") != "independent exudyn truth" or truth.get("kind") != "in_service":
+        raise ValueError("truth_line takes the truth of an in-service campaign of the independent exudyn truth, "
+                         f"got simulator {truth.get('simulator')!r}, kind {truth.get('kind')!r}")
+    j = truth["line"]
+    missing = [k for k in ("sleeper_spacing", "panel_length", "weld_depth", "dx", "dips") if k not in j]
+    if missing:
+        raise ValueError(f"the truth's line has no {', '.join(missing)}: it does not hold the whole line spec, so its "
+                         "line cannot be drawn again; synthesise the campaign again")
+    spec = LineSpec(length=j["length_m"], spectrum=j["spectrum"], sleeper_spacing=j["sleeper_spacing"],
+                    panel_length=j["panel_length"], weld_depth=tuple(j["weld_depth"]), dx=j["dx"],
+                    dips=tuple((d["centre_m"], d["depth_m"], d["length_m"]) for d in j["dips"]))
+    return Line(spec, np.random.default_rng(truth["seed"]))
 
 
 def _rigid(p: CarParameters) -> dict:

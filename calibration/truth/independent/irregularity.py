@@ -14,10 +14,12 @@ the vehicle-track literature; the spectra are one-sided in angular wavenumber.
 
 The profile is a sum of cosines with random phases (Shinozuka's spectral representation,
 evaluated by an inverse FFT) on a 0.05 m grid down to 200 m wavelengths, plus the welds of
-39 m rail panels (the in-service seed's section 4) as short cosine dips of drawn depth.
+39 m rail panels (the in-service seed's section 4) as short cosine dips of drawn depth, and
+any settled dips the line is given (raised-cosine troughs of set centre, depth and length).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,10 +61,18 @@ def spectral_profile(n: int, dx: float, psd, rng: np.random.Generator, longest: 
     return np.fft.irfft(spec, nfft)[:n]
 
 
+def dip_shape(x, depth: float, length: float) -> np.ndarray:
+    """Depth [m] of a settled dip (a raised-cosine trough ``length`` [m] long, ``depth`` [m]
+    deep at its centre) at ``x`` [m] from its centre; zero beyond half its length."""
+    x = np.asarray(x, dtype=float)
+    return np.where(np.abs(x) < 0.5 * length, depth * 0.5 * (1 + np.cos(2 * np.pi * x / length)), 0.0)
+
+
 @dataclass(frozen=True)
 class LineSpec:
     """The line: ``length`` [m] of recorded journeys, spectrum name, sleeper spacing and
-    rail panel (weld) length [m], weld dip depth range [m]."""
+    rail panel (weld) length [m], weld dip depth range [m], and settled ``dips``, each
+    (centre [m], depth [m], length [m]) of a raised-cosine trough in the vertical level."""
 
     length: float = 8_000.0
     spectrum: str = "german_low"
@@ -70,12 +80,23 @@ class LineSpec:
     panel_length: float = 39.0
     weld_depth: tuple[float, float] = (0.05e-3, 0.25e-3)
     dx: float = 0.05
+    dips: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self):
         checks.positive(self, "length", "sleeper_spacing", "panel_length", "dx")
         checks.increasing(self, "weld_depth", low=0.0)
         if self.spectrum not in SPECTRA:
             raise ValueError(f"LineSpec.spectrum must be one of {', '.join(SPECTRA)}, got {self.spectrum!r}")
+        try:
+            dips = tuple((float(c), float(d), float(n)) for c, d, n in self.dips)
+        except (TypeError, ValueError):
+            raise ValueError(f"LineSpec.dips must be (centre, depth, length) triples, got {self.dips!r}") from None
+        for c, d, n in dips:
+            if not (math.isfinite(c) and math.isfinite(d) and math.isfinite(n) and d >= 0 and n > 0):
+                raise ValueError(f"LineSpec.dips must be finite (centre, depth >= 0, length > 0) triples [m], "
+                                 f"got {(c, d, n)!r}")
+        # stored as plain float triples so that a spec read back from the truth JSON's lists compares equal
+        object.__setattr__(self, "dips", dips)
 
 
 class Line:
@@ -92,8 +113,12 @@ class Line:
             depth = rng.uniform(*spec.weld_depth)
             near = np.abs(self.s - sw) < 0.4
             z[near] -= depth * 0.5 * (1 + np.cos(np.pi * (self.s[near] - sw) / 0.4))
-        self.z = z
         self.cross = spectral_profile(n, spec.dx, lambda w: cross_level_psd(w, spec.spectrum), rng)
+        # the dips draw nothing and come after every draw, so the same seed gives the same line around them
+        for centre, depth, length in spec.dips:
+            near = np.abs(self.s - centre) < 0.5 * length
+            z[near] -= dip_shape(self.s[near] - centre, depth, length)
+        self.z = z
 
     def level(self, s) -> np.ndarray:
         """Vertical level [m] at distances ``s`` [m] (linear interpolation)."""
