@@ -1,5 +1,5 @@
 """The 2D car (in-service seed) in the commands: what `identify`, `modes`, `calibrate`,
-`validate`, `crosscheck` and `export-fmu` do for it. Each function writes the command's
+`validate`, `crosscheck`, `infer-track` and `export-fmu` do for it. Each function writes the command's
 files and returns its one-line summary; the registry (:mod:`railcal.registry`) picks it."""
 from __future__ import annotations
 
@@ -155,6 +155,62 @@ def validate(campaign, calibration: dict, args, figures) -> str:
     comfort = f"; ride comfort, the vertical part of N_MV over the recording: {comfort}" if comfort else ""
     return (f"validated over {result.track} ({len(result.runs)} runs, band {result.band_m[0]:g}-"
             f"{result.band_m[1]:g} m): {summary}{comfort}; wrote {names(args.out, png, runs_png)}")
+
+
+def infer_track(campaign, calibration: dict, args, files: dict) -> str:
+    """``railcal infer-track``: the level under the leading bogie, D1 at ``files['csv']``, D2
+    beside it where the data allows, the JSON summary and the figure."""
+    from calibration.data.tracks import read_track_file
+    from calibration.track_inference.infer import InferSettings, compare, infer_track as infer
+    from calibration.track_inference.kalman import KalmanSettings
+    from calibration.track_inference.plots import plot_profile
+
+    p = parameters(calibration, args.calibration)
+    bogie_dx, gyro_gain = sensor_model(calibration, args.calibration)
+    earlier = read_track_file(Path(args.compare)) if args.compare else None
+    if earlier is not None and earlier.band != "D1":
+        raise InputError(f"--compare needs a D1 profile (infer-track's own CSV), got band {earlier.band!r}",
+                         path=Path(args.compare), key="band")
+    settings = InferSettings(kalman=KalmanSettings(step=args.step), axle_boxes=args.axle_boxes)
+    result = infer(campaign, p, extras=extras(calibration, args.calibration), bogie_dx=bogie_dx,
+                   gyro_gain=gyro_gain, settings=settings, progress=progress_for(args))
+    if earlier is not None:
+        result = compare(result, earlier.distance, earlier.level)
+    s = result.section
+    written = [write_profile(files["csv"], s.distance, s.level["D1"], s.std["D1"], s.passes["D1"], "D1")]
+    usable = result.d2_usable()[0]
+    if usable:
+        written.append(write_profile(files["d2"], s.distance, s.level["D2"], s.std["D2"], s.passes["D2"], "D2"))
+    out = result.to_json()
+    out["campaign_sha256"] = campaign.fingerprint()
+    out["profile"], out["profile_d2"] = str(files["csv"]), str(files["d2"]) if usable else None
+    out["plot"] = str(plot_profile(result, files["png"]))
+    write_result(files["json"], out, "track-profile")
+    d1 = out["bands"]["D1"]
+    found = ""
+    if result.changes is not None:
+        found = "; changes against " + str(args.compare) + ": " + (", ".join(
+            f"{'dip' if c.depth > 0 else 'rise'} of {abs(1e3 * c.depth):.2g} mm over {c.length:g} m at {c.centre:.1f} m"
+            for c in result.changes) or "none")
+    return (f"inferred the D1 level over {d1['from_m']:.0f}-{d1['to_m']:.0f} m from {len(result.passes)} pass"
+            f"{'es' * (len(result.passes) != 1)} ({', '.join(result.sensors)}): rms {d1['level_rms_mm']:.3g} mm, "
+            f"standard deviation {d1['std_median_mm']:.2g} mm (median); D2 {'written' if usable else 'not written'}"
+            f"{found}; wrote {names(*written, files['json'], out['plot'])}")
+
+
+def write_profile(path, distance, level, std, passes, band: str) -> Path:
+    """A profile CSV in the campaign format's track-file form (``# band``, ``distance``,
+    ``level``) with ``level_std`` and ``passes``: only where a pass covers it."""
+    from calibration.data.outputs import write_atomic, write_csv
+
+    ok = passes > 0
+    cols = {"distance": distance[ok], "level": level[ok], "level_std": std[ok], "passes": passes[ok]}
+
+    def write(f):
+        f.write(f'# band = "{band}"\n'.encode())
+        write_csv(f, cols)
+
+    return write_atomic(path, write)
 
 
 def crosscheck(calibration: dict, distance, level, args, png: Path | None) -> tuple[dict, str]:

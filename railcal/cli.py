@@ -211,6 +211,26 @@ def cmd_export_fmu(args) -> int:
     return EXIT_OK
 
 
+def cmd_infer_track(args) -> int:
+    path = Path(args.calibration)
+    campaign = campaign_of(args)
+    out = Path(args.out)
+    if out.suffix.lower() != ".csv":
+        raise InputError(f"the profile is a CSV file: give --out with .csv, got {out.name!r}", key="--out")
+    if not args.step > 0 or args.step > 1.0:
+        raise InputError(f"--step must be within (0, 1] m (D1 reaches 3 m wavelengths), got {args.step}", key="--step")
+    files = {"csv": out, "d2": out.with_name(out.stem + "_d2.csv"), "json": out.with_suffix(".json"),
+             "png": out.with_suffix(".png")}
+    check_outputs(list(files.values()), inputs=[args.campaign, path, args.compare, _truth_path(args.campaign)])
+    calibration = read_calibration(path)
+    model = _model_for(campaign, calibration, path)
+    if model.infer_track is None:
+        raise InputError(f"the {model.name} model's campaigns do not run over a track", path=path, key="model")
+    with about_calibration(path):
+        print(model.infer_track(campaign, calibration, args, files))
+    return EXIT_OK
+
+
 def cmd_crosscheck(args) -> int:
     calibration = read_calibration(args.calibration)
     model = model_of_calibration(calibration, args.calibration)
@@ -389,6 +409,19 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--calibration", required=True, help="JSON from railcal calibrate")
     s.add_argument("--out", required=True, help="JSON result to write (the plot goes beside it, .png)")
     _finish(s, cmd_validate, reads_campaign=True)
+
+    s = sub.add_parser("infer-track", help="the track's longitudinal level under the leading bogie, inferred from "
+                       "the vehicle's response")
+    s.add_argument("campaign", help="in-service campaign folder")
+    s.add_argument("--calibration", required=True, help="JSON from railcal calibrate (or diagnose's extended model)")
+    s.add_argument("--out", required=True, help="profile CSV to write (D1; D2 as OUT_d2.csv where the data allows; "
+                   "the summary as OUT.json and the figure as OUT.png beside it)")
+    s.add_argument("--axle-boxes", action="store_true", help="use the leading bogie's axle boxes too (default: the "
+                   "bogie's accelerometer and gyro only)")
+    s.add_argument("--compare", default=None, help="an earlier profile CSV of the same line (infer-track's D1): "
+                   "report the dips and rises between the two (default: none)")
+    s.add_argument("--step", type=float, default=0.25, help="distance step of the profile [m] (default 0.25)")
+    _finish(s, cmd_infer_track, reads_campaign=True)
 
     s = sub.add_parser("diagnose", help="find what the model gets wrong on a campaign, name the cause, "
                        "extend the model and measure the gain")

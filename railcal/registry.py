@@ -42,6 +42,8 @@ class VehicleModel:
     crosscheck_figure : whether the cross-check draws a figure (beside its JSON, .png).
     example_calibration() -> dict : a calibration of the model at nominal parameters, for
         building and testing its FMU without a campaign.
+    infer_track(campaign, calibration, args, files) -> summary : the track's level from the
+        vehicle's response (None: the model's campaigns do not run over a track).
     """
 
     name: str
@@ -60,6 +62,7 @@ class VehicleModel:
     crosscheck: Callable
     crosscheck_figure: bool
     example_calibration: Callable[[], dict]
+    infer_track: Callable | None = None
 
 
 def _diagnose_in_service(campaign, progress, calibration=None, calibration_path=None):
@@ -109,7 +112,8 @@ MODELS: dict[str, VehicleModel] = {m.name: m for m in (
                  modes=car2d.modes, calibrate=car2d.calibrate, calibration_figures=(MAC_FIGURE,),
                  validate=car2d.validate, validation_figures=("_runs",), diagnose=_diagnose_in_service,
                  diagnosis_figures=("_residual_psd", "_speed_map"), fmu_spec=car2d_fmu_spec,
-                 crosscheck=car2d.crosscheck, crosscheck_figure=True, example_calibration=_car_example),
+                 crosscheck=car2d.crosscheck, crosscheck_figure=True, example_calibration=_car_example,
+                 infer_track=car2d.infer_track),
     VehicleModel(name="box", description="the box-type vehicle: flexible carbody on its suspension (carbody seed)",
                  campaign_kind="stationary_excitation", identify=box.identify, identification_figure="_mac",
                  modes=box.modes,

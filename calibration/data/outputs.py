@@ -32,7 +32,8 @@ from .tracks import TRACK_BANDS
 #: The ``format`` key of every JSON result, by kind. A reader accepts a file without the key
 #: (written before it existed) and refuses one it does not know.
 RESULT_FORMATS = {kind: f"railcal-{kind}/1" for kind in (
-    "identification", "calibration", "validation", "diagnosis", "crosscheck", "modes", "truth", "fmu-check")}
+    "identification", "calibration", "validation", "diagnosis", "crosscheck", "modes", "truth", "fmu-check",
+    "track-profile")}
 
 #: Marks a campaign folder written by :class:`CampaignWriter`: ``synth --force`` replaces only
 #: such a folder. The campaign format reads nothing but campaign.toml, runs/ and track/, so

@@ -15,6 +15,8 @@ from .tables import read_csv
 #: (D1 3-25 m, D2 25-70 m: the bands of EN 13848-1), or "raw"; given by the file's optional
 #: first line ``# band = "D1"``.
 TRACK_BANDS = ("D1", "D2", "raw")
+#: [m] The wavelengths of the bands D1 and D2 (EN 13848-1).
+BAND_WAVELENGTHS_M = {"D1": (3.0, 25.0), "D2": (25.0, 70.0)}
 
 
 @dataclass(frozen=True)

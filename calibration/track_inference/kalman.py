@@ -41,6 +41,9 @@ from ..models.track_irregularity import GERMAN_SPECTRA
 from .passes import Pass
 
 
+CHUNK = 256  # steps whose transitions are computed together
+
+
 @dataclass(frozen=True)
 class KalmanSettings:
     """step [m] of the distance grid; lag [m] behind the trailing wheelset at which a point's
@@ -153,33 +156,41 @@ class _Model:
         self.nb = len(channels)
         self.n = self.nx + self.N + 1 + self.nb
         self.Phi_s, self.Q_s, self.P_inf, self.F_s = _shaping(settings)
-        self.rows = [_interp_rows(c, self.N, h) for c in self.c]
-        self.rows_next = [_interp_rows(c - 1, self.N, h) for c in self.c]
-
-    def inputs(self, rows, v: float) -> np.ndarray:
-        """(8, N): the rail levels and rates at the wheelsets over the register."""
-        return np.vstack([r[0] for r in rows] + [v * r[1] for r in rows])
-
-    def transition(self, h: float, v0: float, v1: float):
-        """(Phi_x, E): x' = Phi_x x + E z over a step of ``h`` seconds."""
-        Phi, Ga, Gb = self.car.step_matrices(h)
-        return Phi, Ga @ self.inputs(self.rows, v0) + Gb @ self.inputs(self.rows_next, v1)
-
-    def measurement(self, v: float, a: float) -> np.ndarray:
-        """(n_channels, n): each channel's row over the state (its offset included)."""
-        H = np.zeros((self.nb, self.n))
-        W = self.inputs(self.rows, v)
+        rows = [_interp_rows(c, self.N, h) for c in self.c]
+        nxt = [_interp_rows(c - 1, self.N, h) for c in self.c]
+        self.lev, self.slope = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+        self.lev_next, self.slope_next = np.array([r[0] for r in nxt]), np.array([r[1] for r in nxt])
+        # a channel's row over the state is H0 + v H1 + v^2 H2 + a H3 (v speed, a acceleration)
+        self.H = np.zeros((4, self.nb, self.n))
+        z = slice(self.nx, self.nx + self.N)
         k = 0
         for r, kind in enumerate(self.kinds):
             if kind == "axle":
-                lev, slope, curv = self.rows[self.wheelset[r] - 1]
-                H[r, self.nx:self.nx + self.N] = v * v * curv + a * slope
+                _, slope, curv = rows[self.wheelset[r] - 1]
+                self.H[2, r, z], self.H[3, r, z] = curv, slope
             else:
-                H[r, :self.nx] = self.C[k]
-                H[r, self.nx:self.nx + self.N] = self.D[k] @ W
+                self.H[0, r, :self.nx] = self.C[k]
+                self.H[0, r, z] = self.D[k, :4] @ self.lev
+                self.H[1, r, z] = self.D[k, 4:] @ self.slope
                 k += 1
-            H[r, self.nx + self.N + 1 + r] = 1.0
-        return H
+            self.H[0, r, self.nx + self.N + 1 + r] = 1.0
+
+    def transitions(self, h: np.ndarray, v0: np.ndarray, v1: np.ndarray):
+        """(Phi_x, E) for steps of ``h`` seconds from speed v0 to v1: x' = Phi_x x + E z."""
+        car = self.car
+        lam = car.lam[None, :] * h[:, None]
+        e = np.exp(lam)
+        phi1, phi2 = _phi(car.lam[None, :], h[:, None])
+        Phi = np.einsum("ij,kj,jl->kil", car.V, e, car.Vinv, optimize=True).real
+        Ga = np.einsum("ij,kj,jl->kil", car.V, phi1 - phi2, car.VinvB, optimize=True).real
+        Gb = np.einsum("ij,kj,jl->kil", car.V, phi2, car.VinvB, optimize=True).real
+        E = (Ga[:, :, :4] @ self.lev + v0[:, None, None] * (Ga[:, :, 4:] @ self.slope)
+             + Gb[:, :, :4] @ self.lev_next + v1[:, None, None] * (Gb[:, :, 4:] @ self.slope_next))
+        return Phi, E
+
+    def measurement(self, v: float, a: float) -> np.ndarray:
+        """(n_channels, n): each channel's row over the state (its offset included)."""
+        return self.H[0] + v * self.H[1] + (v * v) * self.H[2] + a * self.H[3]
 
     def prior(self, y0: np.ndarray, settings: KalmanSettings):
         """Initial mean and covariance: the profile stationary with the spectrum, the car at rest
@@ -255,7 +266,10 @@ def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: 
         level[k], var[k] = X[last, 0], P[last, last]
         err[k] = X[last, 1:] - T[last]
         if k + 1 < K:
-            Phi_x, E = m.transition(ps.t[k + 1] - ps.t[k], ps.v[k], ps.v[k + 1])
+            if k % CHUNK == 0:
+                j = slice(k, min(k + CHUNK, K - 1))
+                Phis, Es = m.transitions(np.diff(ps.t[j.start:j.stop + 1]), ps.v[j], ps.v[j.start + 1:j.stop + 1])
+            Phi_x, E = Phis[k % CHUNK], Es[k % CHUNK]
             X = _predict(m, X, Phi_x, E)
             T = _predict(m, T, Phi_x, E)
             T[[iz, ig]] += Lq @ rng.standard_normal((2, draws))

@@ -42,6 +42,7 @@ import scipy.signal
 
 from ..data.campaign import Campaign
 from ..data.errors import CampaignError
+from ..data.tracks import BAND_WAVELENGTHS_M
 from ..identification.fdd import distance_axis
 from ..models.car2d import CarExtras, Output, build_car, state_space, wheelset_positions
 from ..models.parameters import CarParameters
@@ -49,7 +50,7 @@ from ..models.simulate import ModalSimulator
 from ..signals.peaks import parabolic_shift
 from .comfort import comfort_summary, floor_comfort
 
-BANDS_M = {"D1": (3.0, 25.0), "D2": (25.0, 70.0)}
+BANDS_M = BAND_WAVELENGTHS_M
 STEP_M = 0.25  # [m] distance grid of the comparison
 
 

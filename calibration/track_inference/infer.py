@@ -1,0 +1,138 @@
+"""``infer_track``: a campaign's passes through the Kalman filter, combined into the
+section's profile, with the summary the command writes beside it."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .. import checks
+from ..data.campaign import Campaign
+from ..models.car2d import CarExtras
+from ..models.parameters import CarParameters
+from .kalman import KalmanSettings, PassProfile, fit_noise, infer_pass
+from .passes import Pass, read_passes
+from .profile import BANDS, Change, SectionProfile, best_offset, changes, combine
+
+#: D2 is written where its standard deviation is under this fraction of the level's rms
+D2_USABLE = 0.5
+
+
+@dataclass(frozen=True)
+class InferSettings:
+    """axle_boxes: use the leading bogie's axle boxes too; fit: estimate the spectrum's level
+    and the channels' noise from the first pass (:func:`~.kalman.fit_noise`) over
+    ``fit_length`` [m]; draws: error draws per pass for the standard deviations;
+    max_offset [m]: how far passes may be shifted to align them."""
+
+    kalman: KalmanSettings = field(default_factory=KalmanSettings)
+    axle_boxes: bool = False
+    fit: bool = True
+    fit_length: float = 800.0
+    draws: int = 8
+    max_offset: float = 10.0
+    min_length: float = 200.0
+
+    def __post_init__(self):
+        checks.positive(self, "fit_length", "max_offset", "min_length")
+        checks.whole(self, "draws", minimum=0)
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    section: SectionProfile
+    passes: tuple[Pass, ...]
+    profiles: tuple[PassProfile, ...]
+    settings: KalmanSettings
+    fitted: bool
+    sensors: tuple[str, ...]
+    wall_s: float
+    changes: tuple[Change, ...] | None = None
+    compared_offset: float | None = None
+
+    def d2_usable(self) -> tuple[bool, float, float]:
+        """(usable, median std, rms of the level) of the D2 band."""
+        ok = self.section.passes["D2"] > 0
+        if not ok.any():
+            return False, float("nan"), float("nan")
+        std = float(np.median(self.section.std["D2"][ok]))
+        rms = float(np.sqrt(np.mean(self.section.level["D2"][ok] ** 2)))
+        return bool(std < D2_USABLE * rms), std, rms
+
+    def to_json(self) -> dict:
+        s, k = self.section, self.settings
+        bands = {}
+        for band in BANDS:
+            ok = s.passes[band] > 0
+            bands[band] = None if not ok.any() else {
+                "from_m": float(s.distance[ok][0]), "to_m": float(s.distance[ok][-1]),
+                "level_rms_mm": 1e3 * float(np.sqrt(np.mean(s.level[band][ok] ** 2))),
+                "std_median_mm": 1e3 * float(np.median(s.std[band][ok])),
+                "std_max_mm": 1e3 * float(np.max(s.std[band][ok])),
+                "passes_max": int(s.passes[band].max())}
+        usable, std, rms = self.d2_usable()
+        if bands["D2"] is not None:
+            bands["D2"]["written"] = usable
+            bands["D2"]["reason"] = (f"its median standard deviation {1e3 * std:.3g} mm is "
+                                     f"{'under' if usable else 'not under'} {D2_USABLE:g} x its level's rms "
+                                     f"{1e3 * rms:.3g} mm")
+        out = {
+            "method": "Kalman filter in distance with a fixed-lag smoother (calibration/track_inference)",
+            "sensors": list(self.sensors), "step_m": k.step, "lag_m": k.lag,
+            "prior": {"spectrum": k.spectrum, "roughness": k.roughness, "fitted": self.fitted},
+            "noise": {kind: k.noise[kind] for kind in sorted({c.kind for p in self.passes for c in p.channels})},
+            "bands": bands,
+            "passes": [{"run_id": p.run_id, "from_m": float(p.s[0]), "to_m": float(p.s[-1]),
+                        "mean_speed_m_s": float(np.mean(p.v)), "offset_m": s.offsets.get(p.run_id),
+                        "correlation_with_reference": _finite(s.correlation.get(p.run_id)),
+                        "innovation_ratio": pr.innovation_ratio}
+                       for p, pr in zip(self.passes, self.profiles)],
+            "wall_s": self.wall_s,
+        }
+        if self.changes is not None:
+            out["changes"] = [c.to_json() for c in self.changes]
+            out["compared_offset_m"] = self.compared_offset
+        return out
+
+
+def _finite(x):
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def infer_track(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None = None, bogie_dx: float = 0.0,
+                gyro_gain: float = 1.0, settings: InferSettings = InferSettings(), progress=None) -> TrackResult:
+    """The level under the campaign's leading bogie, every pass combined."""
+    t0 = time.perf_counter()
+    k = settings.kalman
+    passes = read_passes(campaign, step=k.step, axle_boxes=settings.axle_boxes, bogie_dx=bogie_dx,
+                         min_length=settings.min_length, progress=progress)
+    if settings.fit:
+        k, _ = fit_noise(max(passes, key=lambda q: q.s.size), p, k, extras=extras, gyro_gain=gyro_gain,
+                         length=settings.fit_length)
+        if progress:
+            kinds = sorted({c.kind for c in passes[0].channels})
+            progress(f"infer-track: spectrum level x{k.roughness:.3g}, noise "
+                     + ", ".join(f"{c} {k.noise[c]:.3g}" for c in kinds))
+    profiles = []
+    for i, ps in enumerate(passes):
+        profiles.append(infer_pass(ps, p, k, extras=extras, gyro_gain=gyro_gain, draws=settings.draws, seed=i))
+        if progress:
+            progress(f"infer-track: {ps.run_id} {ps.s[-1] - ps.s[0]:.0f} m inferred")
+    section = combine(profiles, k.step, max_offset=settings.max_offset)
+    sensors = tuple(dict.fromkeys(c.name for ps in passes for c in ps.channels))
+    return TrackResult(section, tuple(passes), tuple(profiles), k, settings.fit, sensors,
+                       time.perf_counter() - t0)
+
+
+def compare(result: TrackResult, distance: np.ndarray, level: np.ndarray, *, max_offset: float = 10.0,
+            threshold: float = 6.0) -> TrackResult:
+    """``result`` with the changes from an earlier D1 profile (``distance``, ``level`` [m])."""
+    s = result.section
+    ok = s.passes["D1"] > 0
+    offset, _ = best_offset(distance, level, s.distance[ok], s.level["D1"][ok], s.distance[1] - s.distance[0],
+                            max_offset)
+    before = np.interp(s.distance, distance - offset, level, left=np.nan, right=np.nan)
+    found, _ = changes(s.distance, before, np.where(ok, s.level["D1"], np.nan), s.distance[1] - s.distance[0],
+                       threshold=threshold)
+    return replace(result, changes=tuple(found), compared_offset=offset)
