@@ -333,6 +333,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--dip", action="append", default=None, metavar="CENTRE_M:DEPTH_MM:LENGTH_M",
                    help="a settled dip in the line's level: a raised cosine of that centre [m], depth [mm] and "
                         "length [m]; repeatable (default: none); --truth exudyn only")
+    s.add_argument("--line-seed", type=_seed, default=None, help="the line's own seed, so that campaigns of other "
+                   "seeds run over the same line (default: the campaign's seed draws it); --truth exudyn only")
     s = synth_parser("excitation", "stationary excitation test (exciter force and floor accelerometers)",
                      cmd_synth_excitation)
     s.add_argument("--duration", type=float, default=600.0, help="total recording [s], split over the runs")

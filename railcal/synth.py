@@ -25,6 +25,8 @@ def cmd_synth_in_service(args) -> int:
         raise InputError("--vehicle chooses a vehicle of the exudyn truth; give --truth exudyn", key="--vehicle")
     if args.dip:
         raise InputError("--dip settles a dip in the exudyn truth's line; give --truth exudyn", key="--dip")
+    if args.line_seed is not None:
+        raise InputError("--line-seed draws the exudyn truth's line; give --truth exudyn", key="--line-seed")
     effect = parse_effect(args.effect, "in_service")
     check_campaign_output(args.out, overwrite=args.force)
     settings = InServiceSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0),
@@ -51,7 +53,7 @@ def _synth_in_service_exudyn(args) -> int:
     dips = _parse_dips(args.dip or (), args.length_km * 1000.0)
     check_campaign_output(args.out, overwrite=args.force)
     settings = IndependentSettings(journeys=args.journeys, line=LineSpec(length=args.length_km * 1000.0, dips=dips),
-                                   carbody_sensors=args.carbody_sensors)
+                                   carbody_sensors=args.carbody_sensors, line_seed=args.line_seed)
     truth = synth_in_service_independent(args.out, seed=args.seed, settings=settings, effect=effect, vehicle=name,
                                          fmt=args.format, overwrite=args.force, progress=progress_for(args))
     f = truth["frequencies_hz"]

@@ -54,13 +54,14 @@ class KalmanSettings:
 
     step: float = 0.25
     lag: float = 12.0
+    longest: float = 70.0
     spectrum: str = "german_low"
     roughness: float = 1.0
     noise: dict = field(default_factory=lambda: {"bogie_acc": 0.05, "gyro": 0.002, "axle": 0.5})
     offset_walk: dict = field(default_factory=lambda: {"bogie_acc": 2e-3, "gyro": 2e-4, "axle": 2e-2})
 
     def __post_init__(self):
-        checks.positive(self, "step", "roughness")
+        checks.positive(self, "step", "roughness", "longest")
         checks.non_negative(self, "lag")
         if self.spectrum not in GERMAN_SPECTRA:
             raise ValueError(f"KalmanSettings.spectrum must be one of {', '.join(GERMAN_SPECTRA)}, "
@@ -85,6 +86,7 @@ class PassProfile:
 def _shaping(settings: KalmanSettings):
     """(Phi, Q, P_inf, F) of the two-pole shaping filter over one step, state [r, r']."""
     a, wc, wr, _ = GERMAN_SPECTRA[settings.spectrum]
+    wr = max(wr, 2 * np.pi / settings.longest)
     b = np.sqrt(np.pi * a * settings.roughness) * wc  # one-sided S = (1/pi) |H|^2 for unit white noise
     F = np.array([[0.0, 1.0], [-wr * wc, -(wr + wc)]])
     G = np.array([[0.0], [b]])

@@ -61,6 +61,7 @@ class IndependentSettings:
     speed_noise: float = 0.05  # [m/s]
     recording_noise: float = 0.05e-3  # [m]
     run_in: float = 2.0  # [s] simulated before each journey's recording starts
+    line_seed: int | None = None  # the line's own seed: campaigns of other seeds over the same line
 
     def __post_init__(self):
         checks.whole(self, "journeys")
@@ -297,7 +298,7 @@ def synth_in_service_independent(out, *, seed: int = 0, settings: IndependentSet
     s = settings
     rng = np.random.default_rng(seed)
     fx = _Effects(tuple(effect), spec, np.random.default_rng([seed, 7]))
-    line = Line(s.line, rng)
+    line = Line(s.line, rng if s.line_seed is None else np.random.default_rng(s.line_seed))
     c_p = spec.c_p * float(rng.uniform(*s.damping_spread))
     c_s = spec.c_s * float(rng.uniform(*s.damping_spread))
     sensors = campaign_sensors(spec, s)
@@ -368,7 +369,8 @@ def synth_in_service_independent(out, *, seed: int = 0, settings: IndependentSet
         "noise_rms_si": {"axle_boxes": s.noise[0], "bogie1_acc_z": s.noise[1], "carbody": s.noise[2],
                          "bogie1_gyro_pitch": float(np.radians(s.noise[3]))},
         "speed_dependent_wavelengths_m": {"sleeper": s.line.sleeper_spacing, "rail_panel": s.line.panel_length},
-        "line": {**_line_json(s.line), "track_recording": {"start_m": start, "length_m": rec_len, "band": "D1"}},
+        "line": {**_line_json(s.line), "seed": s.line_seed,
+                 "track_recording": {"start_m": start, "length_m": rec_len, "band": "D1"}},
         "performance": {"simulated_s": simulated, "wall_s": wall, "real_time_factor": simulated / wall},
         "journeys": journeys,
     }
@@ -386,7 +388,7 @@ def _line_json(spec: LineSpec) -> dict:
 def truth_line(truth: dict) -> Line:
     """The line a campaign's journeys ran over, drawn again from its truth (``out.truth.json``
     as read by ``json.load``): its seed and line spec. The line is the first draw of the
-    campaign's generator, so nothing else of the campaign is needed."""
+    campaign's generator (or of its own, with a line seed), so nothing else of the campaign is needed."""
     if truth.get("simulator") != "independent exudyn truth" or truth.get("kind") != "in_service":
         raise ValueError("truth_line takes the truth of an in-service campaign of the independent exudyn truth, "
                          f"got simulator {truth.get('simulator')!r}, kind {truth.get('kind')!r}")
@@ -398,7 +400,8 @@ def truth_line(truth: dict) -> Line:
     spec = LineSpec(length=j["length_m"], spectrum=j["spectrum"], sleeper_spacing=j["sleeper_spacing"],
                     panel_length=j["panel_length"], weld_depth=tuple(j["weld_depth"]), dx=j["dx"],
                     dips=tuple((d["centre_m"], d["depth_m"], d["length_m"]) for d in j["dips"]))
-    return Line(spec, np.random.default_rng(truth["seed"]))
+    seed = j.get("seed")
+    return Line(spec, np.random.default_rng(truth["seed"] if seed is None else seed))
 
 
 def _rigid(p: CarParameters) -> dict:
