@@ -9,7 +9,11 @@ The state, at grid point k (the car's centre at s_k, every ``step`` metres):
   metres behind the trailing one, z[i] = r(s_k + x_1 + 2 step - i step);
 * the slope at the register's front, which with z[0] is the state of the shaping filter:
   the profile is white noise through the published German vertical spectrum's two poles,
-  S(W) = A W_c^2 / ((W^2 + W_r^2)(W^2 + W_c^2)), discretised exactly over a step;
+  S(W) = A W_c^2 / ((W^2 + W_r^2)(W^2 + W_c^2)), discretised exactly over a step, with
+  W_r raised to 2 pi / ``longest``: waves longer than the longest reported (D2's 70 m)
+  are barely seen by the bogie, and left at the spectrum's hundreds of metres they wander
+  under the estimate as each new measurement moves them (measured: D1 error 0.11-0.15 mm
+  with them, 0.05 mm without, on a development campaign);
 * a slowly wandering offset per channel (gravity, misalignment, gyro offset and drift).
 
 Over a step the register shifts by one cell and the car moves exactly (its modes, first-
@@ -19,9 +23,11 @@ is C x + D u, an axle box the rail's own acceleration, v^2 r'' + a r'.
 
 Every profile point stays in the register until ``lag`` metres behind the trailing
 wheelset: its estimate when it leaves uses every measurement taken while any wheelset was
-on it and after, for as long as the car still responds to it. That is a fixed-lag
-smoother; a longer lag does not change the D1 estimate (tested). Its variance is the
-filter's for that cell.
+on it and after, for as long as the bogie still responds to it. That is a fixed-lag
+smoother. A longer lag is not better here: consecutive points are then read given data
+sets that differ by more steps, and what remains uncertain at long wavelengths shows up
+as jitter in D1 (a 24 m or 40 m lag gave 1.3-2x the D1 error of 12 m on the development
+campaigns). Its variance is the filter's for that cell.
 
 The spectrum's level and each channel's noise are not taken on trust: they are estimated
 from the data by maximum likelihood on the innovations (:func:`fit_noise`).
@@ -48,7 +54,7 @@ CHUNK = 256  # steps whose transitions are computed together
 class KalmanSettings:
     """step [m] of the distance grid; lag [m] behind the trailing wheelset at which a point's
     estimate is read; spectrum: the published vertical spectrum shaping the profile, scaled
-    by ``roughness`` (its variance factor); noise [SI] per channel kind, the rms of the
+    by ``roughness`` (its variance factor) and flat above ``longest`` [m]; noise [SI] per channel kind, the rms of the
     measurement's misfit on the grid (sensor noise and what the model leaves out);
     offset_walk [SI/sqrt(m)]: how fast a channel's offset may wander."""
 
