@@ -109,8 +109,8 @@ def combine(profiles: list[PassProfile], step: float, *, max_offset: float = 10.
     ref = max(d1, key=lambda b: b.distance.size)
     offsets, corr = {}, {}
     for b in d1:
-        offsets[b.run_id], corr[b.run_id] = ((0.0, 1.0) if b is ref else
-                                             best_offset(ref.distance, ref.level, b.distance, b.level, step, max_offset))
+        offsets[b.run_id], corr[b.run_id] = (
+            (0.0, 1.0) if b is ref else best_offset(ref.distance, ref.level, b.distance, b.level, step, max_offset))
     mean_offset = float(np.mean(list(offsets.values())))
     offsets = {k: v - mean_offset for k, v in offsets.items()}
     lo = min(pp.distance[0] for pp in profiles) - max_offset
