@@ -21,7 +21,9 @@ pass shows; one common to every pass (the same calibration) does not.
 differenced in D1. A settled dip is a raised-cosine trough; the difference is scanned with
 that shape, band-filtered alike, for lengths 4-24 m (a matched filter): its least-squares
 depth at every position, over the robust spread of that depth along the line, is the
-detection's score. Peaks above ``threshold`` are reported with centre, length and depth.
+detection's score. The strongest change above ``threshold`` is taken, with its centre,
+length and depth, and its fitted shape removed before the next is looked for, so that a
+dip's band-filtered side lobes are not taken for rises beside it.
 """
 from __future__ import annotations
 
@@ -163,33 +165,35 @@ def _dip(length: float, step: float) -> np.ndarray:
 
 def changes(distance: np.ndarray, before: np.ndarray, after: np.ndarray, step: float, *,
             lengths=(4.0, 6.0, 8.0, 10.0, 12.0, 16.0, 20.0, 24.0), threshold: float = 6.0,
-            separation: float = 30.0) -> tuple[list[Change], np.ndarray]:
+            most: int = 50) -> tuple[list[Change], np.ndarray]:
     """Dips and rises in ``after - before`` (D1 levels on ``distance``, NaN where not covered):
-    the changes found and the difference."""
+    the changes found and the difference. The strongest is taken and its fitted shape
+    removed before the next is looked for, so a dip's band-filtered side lobes are not
+    reported as rises beside it."""
     diff = after - before
     ok = np.isfinite(diff)
     d = np.where(ok, diff, 0.0)
-    best_score = np.zeros(d.size)
-    best = np.zeros((d.size, 2))
     pad = 4 * _window("D1", step)
-    for length in lengths:
-        shape = _dip(length, step)
-        t = band_filter(np.pad(shape, pad), "D1", step)
+    templates = [(length, band_filter(np.pad(_dip(length, step), pad), "D1", step)) for length in lengths]
+    spreads = []
+    for _, t in templates:  # the robust spread of each length's depth estimate along the line
         amp = -scipy.signal.correlate(d, t, mode="same") / np.dot(t, t)
-        spread = 1.4826 * np.median(np.abs(amp[ok] - np.median(amp[ok])))
-        score = np.where(ok, amp / max(spread, 1e-12), 0.0)
-        better = np.abs(score) > np.abs(best_score)
-        best_score[better] = score[better]
-        best[better] = np.column_stack([np.full(better.sum(), length), amp[better]])
+        spreads.append(max(1.4826 * np.median(np.abs(amp[ok] - np.median(amp[ok]))), 1e-12))
     found = []
-    order = np.argsort(-np.abs(best_score))
-    taken = np.zeros(d.size, bool)
-    sep = int(separation / step)
-    for i in order:
-        if abs(best_score[i]) < threshold:
+    for _ in range(most):
+        best = (0.0, 0, 0, 0.0)  # score, position, template, depth
+        for j, (length, t) in enumerate(templates):
+            amp = -scipy.signal.correlate(d, t, mode="same") / np.dot(t, t)
+            score = np.where(ok, amp / spreads[j], 0.0)
+            i = int(np.argmax(np.abs(score)))
+            if abs(score[i]) > abs(best[0]):
+                best = (float(score[i]), i, j, float(amp[i]))
+        score, i, j, depth = best
+        if abs(score) < threshold:
             break
-        if taken[max(0, i - sep):i + sep + 1].any():
-            continue
-        taken[i] = True
-        found.append(Change(float(distance[i]), float(best[i, 0]), float(best[i, 1]), float(best_score[i])))
+        found.append(Change(float(distance[i]), templates[j][0], depth, score))
+        t = templates[j][1]
+        half = t.size // 2
+        lo, hi = max(0, i - half), min(d.size, i + half + 1)
+        d[lo:hi] += depth * t[half - (i - lo):half + (hi - i)]
     return found, diff

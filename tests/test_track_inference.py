@@ -1,0 +1,171 @@
+"""Track profile inference (calibration/track_inference, ``railcal infer-track``).
+
+The filter's own-model tests run the calibrated car's equations over a known profile:
+they test the inverse's code, not its evidence, which is the exudyn-truth bench
+(``scripts/bench_infer_track.py``)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from calibration.data.tracks import read_track_file
+from calibration.models.car2d import Output, build_car, state_space, wheelset_positions
+from calibration.models.simulate import simulate
+from calibration.models.track_irregularity import german_vertical_psd, synthesise_profile
+from calibration.models.vehicles import VEHICLES
+from calibration.track_inference.kalman import KalmanSettings, PassProfile, infer_pass
+from calibration.track_inference.passes import Channel, Pass
+from calibration.track_inference.profile import band_filter, changes, combine
+from railcal.cli import main
+
+STEP, FS = 0.25, 500.0
+NOISE = {"bogie_acc": 0.02, "gyro": 3e-4}
+
+
+def _own_pass(length=1200.0, v0=35.0, seed=1):
+    """The intercity car's bogie accelerometer and gyro over a German-spectrum profile at a
+    varying speed, with white noise, on the distance grid (as read_passes makes it)."""
+    p = VEHICLES["intercity"]
+    rng = np.random.default_rng(seed)
+    sx, zx = synthesise_profile(german_vertical_psd, length + 200.0, 0.05, rng, min_wavelength=1.0,
+                                max_wavelength=200.0)
+    sx = sx - 100.0
+    t = np.arange(0, length / v0, 1 / FS)
+    v = v0 + 3 * np.sin(2 * np.pi * t / 20)
+    s = np.concatenate([[0], np.cumsum(0.5 * (v[1:] + v[:-1]) / FS)])
+    xw = wheelset_positions(p)
+    outs = [Output("acc", "acceleration", "bogie1", p.L_v + 0.45), Output("gyro", "pitch_rate", "bogie1")]
+    slope = np.gradient(zx, sx)
+    w = np.column_stack([np.interp(s + x, sx, zx) for x in xw] + [v * np.interp(s + x, sx, slope) for x in xw])
+    y = simulate(state_space(build_car(p), outs), w, 1 / FS, x0="static")
+    y += rng.normal(0, 1, y.shape) * [NOISE["bogie_acc"], NOISE["gyro"]]
+    grid = np.arange(s[0], s[-1], STEP)
+    tg = np.interp(grid, s, t)
+    sos = scipy.signal.butter(4, 30.0, fs=FS, output="sos")
+    chans = (Channel("acc", "bogie_acc", np.interp(tg, t, scipy.signal.sosfiltfilt(sos, y[:, 0])), x=p.L_v + 0.45),
+             Channel("gyro", "gyro", np.interp(tg, t, scipy.signal.sosfiltfilt(sos, y[:, 1]))))
+    ps = Pass("own", grid, tg, np.interp(tg, t, v), np.interp(tg, t, np.gradient(v, t)), chans)
+    return p, ps, (sx, zx)
+
+
+@pytest.fixture(scope="module")
+def own():
+    p, ps, (sx, zx) = _own_pass()
+    # the noise on the grid: the white noise's rms through the 30 Hz low-pass
+    noise = {k: v * np.sqrt(30.0 / (FS / 2)) for k, v in NOISE.items()}
+    pr = infer_pass(ps, p, KalmanSettings(noise=noise), draws=16)
+    inner = slice(int(60 / STEP), pr.level.size - int(60 / STEP))
+    est = band_filter(pr.level, "D1", STEP)[inner]
+    true = band_filter(np.interp(pr.distance, sx, zx), "D1", STEP)[inner]
+    formal = np.sqrt(np.mean(band_filter(pr.error_draws, "D1", STEP)[inner] ** 2))
+    return est, true, formal
+
+
+def test_the_filter_recovers_the_profile_its_own_car_ran_over(own):
+    est, true, _ = own
+    assert np.corrcoef(est, true)[0, 1] > 0.99
+    assert np.sqrt(np.mean((est - true) ** 2)) < 0.1e-3  # [m] against a D1 rms of about 1 mm
+
+
+def test_the_error_draws_give_the_error_size_on_the_models_own_data(own):
+    est, true, formal = own
+    actual = np.sqrt(np.mean((est - true) ** 2))
+    assert 0.5 < actual / formal < 2.0
+
+
+def _profile(run_id, distance, level, std=1e-4):
+    return PassProfile(run_id, distance, level, np.full(level.size, std), 0.0, {},
+                       np.random.default_rng(len(run_id)).normal(0, std, (level.size, 4)))
+
+
+def test_combine_aligns_passes_on_their_mean_position_and_averages_them():
+    rng = np.random.default_rng(3)
+    d, truth = synthesise_profile(german_vertical_psd, 3000.0, STEP, rng, min_wavelength=1.0, max_wavelength=200.0)
+    shifts = {"a": 0.8, "b": -0.3, "c": -0.5}  # a pass's distance axis is this far ahead of the truth
+    passes = [_profile(k, d + s, truth + rng.normal(0, 5e-5, d.size)) for k, s in shifts.items()]
+    sec = combine(passes, STEP)
+    for k, s in shifts.items():  # the mean shift is zero, so each pass is moved back by its own
+        assert sec.offsets[k] == pytest.approx(-s, abs=0.03)
+    ok = sec.passes["D1"] == 3
+    err = sec.level["D1"][ok] - np.interp(sec.distance[ok], d, band_filter(truth, "D1", STEP))
+    # the noise in D1 (0.15 of a white band's power), averaged over three passes: 1.1e-5 m
+    assert np.sqrt(np.mean(err ** 2)) < 2.5e-5
+
+
+def test_changes_find_a_settled_dip_where_it_is_and_nothing_else():
+    rng = np.random.default_rng(4)
+    d = np.arange(0.0, 4000.0, STEP)
+    before = band_filter(rng.normal(0, 1e-3, d.size), "D1", STEP) * 3
+    dip = np.where(np.abs(d - 2100.0) < 5.0, 5e-3 * 0.5 * (1 + np.cos(2 * np.pi * (d - 2100.0) / 10.0)), 0.0)
+    after = before - band_filter(dip, "D1", STEP) + rng.normal(0, 1e-4, d.size)
+    found, _ = changes(d, before, after, STEP)
+    assert len(found) == 1
+    assert found[0].centre == pytest.approx(2100.0, abs=1.0)
+    assert found[0].depth == pytest.approx(5e-3, rel=0.1)
+    assert changes(d, before, before + rng.normal(0, 1e-4, d.size), STEP)[0] == []
+
+
+def test_settings_are_checked():
+    with pytest.raises(ValueError, match="step"):
+        KalmanSettings(step=0.0)
+    with pytest.raises(ValueError, match="spectrum"):
+        KalmanSettings(spectrum="smooth")
+
+
+# ------------------------------------------------------------------- the command
+@pytest.fixture(scope="module")
+def small_campaign(tmp_path_factory):
+    from calibration.truth.independent import IndependentSettings, synth_in_service_independent
+    from calibration.truth.independent.irregularity import LineSpec
+    from railcal.registry import MODELS
+
+    root = tmp_path_factory.mktemp("track") / "c"
+    synth_in_service_independent(root, seed=3, settings=IndependentSettings(journeys=1, line=LineSpec(length=1500.0)))
+    cal = root.parent / "cal.json"
+    cal.write_text(json.dumps({"format": "railcal-calibration/1", **MODELS["car2d"].example_calibration()}))
+    return root, cal
+
+
+@pytest.mark.slow(seconds=25)
+def test_infer_track_writes_a_d1_profile_a_summary_and_a_figure(small_campaign, capsys):
+    root, cal = small_campaign
+    out = root.parent / "profile.csv"
+    assert main(["infer-track", str(root), "--calibration", str(cal), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    rec = read_track_file(out)  # a profile is a track file: a campaign can validate over it
+    assert rec.band == "D1" and np.all(np.diff(rec.distance) > 0)
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["format"] == "railcal-track-profile/1"
+    assert summary["sensors"] == ["bogie1_acc_z", "bogie1_gyro_pitch"]
+    assert 0.2 < summary["bands"]["D1"]["level_rms_mm"] < 5.0
+    assert summary["bands"]["D1"]["std_median_mm"] < summary["bands"]["D1"]["level_rms_mm"]
+    assert out.with_suffix(".png").exists() and "inferred the D1 level" in printed
+    again = root.parent / "again.csv"
+    assert main(["infer-track", str(root), "--calibration", str(cal), "--out", str(again), "--compare", str(out),
+                 "--quiet"]) == 0
+    assert json.loads(again.with_suffix(".json").read_text())["changes"] == []
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"out": "profile.txt"}, "--out"),
+    ({"step": "0"}, "--step"),
+    ({"compare": "d2.csv"}, "D1 profile"),
+    ({"calibration": "box.json"}, "box"),
+])
+def test_infer_track_refuses_bad_input_with_exit_2(small_campaign, tmp_path, capsys, example_calibration, change,
+                                                   message):
+    root, cal = small_campaign
+    (tmp_path / "d2.csv").write_text('# band = "D2"\ndistance,level\n0,0\n1,0\n')
+    (tmp_path / "box.json").write_text(json.dumps({"format": "railcal-calibration/1", **example_calibration("box")}))
+    args = {"out": "p.csv", "step": "0.25", "compare": None, "calibration": str(cal), **change}
+    argv = ["infer-track", str(root), "--calibration", str(tmp_path / args["calibration"]) if change.get(
+        "calibration") else args["calibration"], "--out", str(tmp_path / args["out"]), "--step", args["step"], "--quiet"]
+    if args["compare"]:
+        argv += ["--compare", str(tmp_path / args["compare"])]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not (tmp_path / "p.csv").exists()
