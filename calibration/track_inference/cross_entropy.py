@@ -309,4 +309,4 @@ def infer_pass_ce(ps: Pass, p: CarParameters, settings: CESettings, *, extras: C
     distance = ps.s + xw[0]
     ratio = {c.name: float(resid2[i] / K / scale[i] ** 2) for i, c in enumerate(bogie)}
     return PassProfile(ps.run_id, distance, np.interp(distance, q, nodes), np.interp(distance, q, spread),
-                       math.nan, ratio)
+                       math.nan, ratio, np.empty((distance.size, 0)))  # no error model: no draws
