@@ -21,7 +21,9 @@ within +-5 m (printed); the same against the campaign's track recording (its noi
 and depth error, and any other change reported; wall time per 10 km of line. The seed's
 baseline (:mod:`calibration.track_inference.cross_entropy`, bogie sensors, its default
 settings) runs on the first ``--ce-length`` metres of journey 1 after 200 m, and the
-Kalman estimate of the same pass is scored on the same stretch.
+Kalman estimate of the same pass (its default settings, not fitted) and the classic
+inertial method (:mod:`calibration.track_inference.inertial`, axle boxes) are scored on
+the same stretch.
 
 Forecast, written before the first run (2026-11-29, from two development campaigns,
 seeds 33000 and line 77, which are not bench seeds): bogie sensors only, D1 correlation
@@ -47,6 +49,8 @@ from scipy.stats import binomtest
 from calibration.data.campaign import open_campaign
 from calibration.data.tracks import read_track_file
 from calibration.models.parameters import CarParameters
+from calibration.models.car2d import wheelset_positions
+from calibration.track_inference.inertial import inertial_level
 from calibration.track_inference.kalman import KalmanSettings, infer_pass
 from calibration.track_inference.passes import read_passes
 from calibration.track_inference.profile import band_filter, best_offset
@@ -66,7 +70,7 @@ def _score(d: np.ndarray, est: np.ndarray, ref: np.ndarray) -> dict:
     ok = np.isfinite(est) & np.isfinite(ref)
     d, est, ref = d[ok], est[ok], ref[ok]
     off, _ = best_offset(d, ref, d, est, STEP, 5.0)
-    shifted = np.interp(d + off, d, est)
+    shifted = np.interp(d - off, d, est)  # est's sample at x belongs at x + off
     inner = slice(int(10 / STEP), d.size - int(10 / STEP))
 
     def stats(x):
@@ -115,6 +119,10 @@ def _ce(root: Path, calibration: Path, line, length: float) -> dict:
     sub = type(ps)(ps.run_id, ps.s[keep], ps.t[keep], ps.v[keep], ps.a[keep],
                    tuple(type(c)(c.name, c.kind, c.values[keep], c.x, c.wheelset) for c in ps.channels))
     out = {}
+    ax = read_passes(open_campaign(root), step=STEP, axle_boxes=True)[0]
+    t0 = time.perf_counter()
+    d_in, z_in = inertial_level(ax, wheelset_positions(p))
+    out["inertial_wall_s_per_km"] = (time.perf_counter() - t0) / ((ax.s[-1] - ax.s[0]) / 1000.0)
     t0 = time.perf_counter()
     ce = infer_pass_ce(sub, p, CESettings())
     out["ce_wall_s_per_km"] = (time.perf_counter() - t0) / (length / 1000.0)
@@ -122,12 +130,13 @@ def _ce(root: Path, calibration: Path, line, length: float) -> dict:
     kf = infer_pass(ps, p, KalmanSettings(), draws=0)
     out["kalman_wall_s_per_km"] = (time.perf_counter() - t0) / ((ps.s[-1] - ps.s[0]) / 1000.0)
     fine = np.arange(line.s[0], line.s[-1], STEP)
-    for name, prof in (("ce", ce), ("kalman", kf)):
-        lo, hi = ce.distance[0] + 100.0, ce.distance[-1] - 100.0
-        band = band_filter(prof.level, "D1", STEP)
-        inside = (prof.distance >= lo) & (prof.distance <= hi)
-        truth = np.interp(prof.distance[inside], fine, band_filter(line.level(fine), "D1", STEP))
-        out[name] = _score(prof.distance[inside], band[inside], truth)
+    lo, hi = ce.distance[0] + 100.0, ce.distance[-1] - 100.0
+    for name, (dist, band) in (("ce", (ce.distance, band_filter(ce.level, "D1", STEP))),
+                               ("kalman", (kf.distance, band_filter(kf.level, "D1", STEP))),
+                               ("inertial", (d_in, z_in))):
+        inside = (dist >= lo) & (dist <= hi)
+        truth = np.interp(dist[inside], fine, band_filter(line.level(fine), "D1", STEP))
+        out[name] = _score(dist[inside], band[inside], truth)
     return out
 
 
@@ -198,7 +207,7 @@ def _print(r: dict) -> None:
         print(f"  {tag:10s} dip: {found}; other changes {len(s['other_changes'])}{others}")
     if "ce" in r:
         c = r["ce"]
-        for name in ("ce", "kalman"):
+        for name in ("ce", "kalman", "inertial"):
             x = c[name]
             print(f"  {name:10s} D1 on the CE stretch: corr {x['at_position']['corr']:.4f} RMSE "
                   f"{x['at_position']['rmse_mm']:.3f} mm; shifted corr {x['shifted']['corr']:.4f} RMSE "

@@ -1,0 +1,49 @@
+"""The classic inertial method: the rail's level from the axle boxes' vertical
+acceleration integrated twice over distance.
+
+A wheelset on the rail follows its level r(s): its acceleration is v^2 r'' + a r'. On the
+distance grid, r'' = (acc - a r') / v^2, and r' is taken from the previous estimate (one
+fixed-point pass; a r' is a few per cent of v^2 r'' at the train's accelerations). The
+double integral is done in the wavenumber domain, inside the band asked for, where it is
+a division by -(2 pi k)^2; the offset (gravity) and everything longer than the band go.
+Each axle's estimate is placed at its own wheelset's position and the two are averaged.
+
+It needs no vehicle model, which is its strength; the axle box also carries what the
+model leaves out (the track's own give under the wheel, sleeper passing, the wheel's
+roundness), and at long wavelengths v^2 r'' is tiny beside the sensor's noise.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.tracks import BAND_WAVELENGTHS_M
+from .passes import Pass
+
+
+def _integrate_twice(x: np.ndarray, step: float, band: tuple[float, float]) -> np.ndarray:
+    n = x.size
+    nfft = 1 << int(np.ceil(np.log2(2 * n)))
+    k = np.fft.rfftfreq(nfft, step)  # [cycles/m]
+    spec = np.fft.rfft(x - x.mean(), nfft)
+    inside = (k >= 1.0 / band[1]) & (k <= 1.0 / band[0])
+    out = np.zeros_like(spec)
+    out[inside] = -spec[inside] / (2 * np.pi * k[inside]) ** 2
+    return np.fft.irfft(out, nfft)[:n]
+
+
+def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.ndarray, np.ndarray]:
+    """(distance [m], level [m]) in ``band`` from the pass's axle-box channels; ``wheel_x``
+    [m] the wheelsets' positions from the car's centre (wheelset 1 leads)."""
+    axles = [c for c in ps.channels if c.kind == "axle"]
+    if not axles:
+        raise ValueError("the pass has no axle-box channel (read it with axle_boxes=True)")
+    step = float(ps.s[1] - ps.s[0])
+    limits = BAND_WAVELENGTHS_M[band]
+    grid = ps.s + wheel_x[0]
+    levels = []
+    for c in axles:
+        acc = c.values - np.mean(c.values)
+        r = _integrate_twice(acc / ps.v ** 2, step, limits)
+        r = _integrate_twice((acc - ps.a * np.gradient(r, step)) / ps.v ** 2, step, limits)
+        levels.append(np.interp(grid, ps.s + wheel_x[c.wheelset - 1], r))
+    return grid, np.mean(levels, axis=0)
