@@ -76,7 +76,8 @@ def banded(pp: PassProfile, band: str, step: float) -> BandedPass | None:
 
 def best_offset(ref_d: np.ndarray, ref: np.ndarray, d: np.ndarray, x: np.ndarray, step: float,
                 max_offset: float) -> tuple[float, float]:
-    """(offset [m], correlation): ``x`` at ``d + offset`` best matches ``ref`` at ``ref_d``."""
+    """(offset [m], correlation): the sample of ``x`` at ``d`` lies at ``d + offset`` on
+    ``ref``'s axis ``ref_d`` (the shift within +-``max_offset`` that best matches them)."""
     lo, hi = max(ref_d[0], d[0]), min(ref_d[-1], d[-1])
     if hi - lo < 4 * max_offset:
         return 0.0, float("nan")
