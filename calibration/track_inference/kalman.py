@@ -250,42 +250,50 @@ def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: 
     q_off = np.array([settings.offset_walk[k] ** 2 * settings.step for k in m.kinds])
     x0, P = m.prior(Y[0], settings)
     w, U = np.linalg.eigh(P)
-    X = np.tile(x0[:, None], (1, 1 + draws))  # the estimate, then the draws' estimates
-    T = x0[:, None] + (U * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((n, draws))  # the draws' truths
+    # columns: the estimate, the draws' estimates, the draws' truths (one transition for all)
+    Z = np.tile(x0[:, None], (1, 1 + 2 * draws))
+    Z[:, 1 + draws:] += (U * np.sqrt(np.maximum(w, 0.0))) @ rng.standard_normal((n, draws))
+    est, tru = slice(0, 1 + draws), slice(1 + draws, 1 + 2 * draws)
     Lq = np.linalg.cholesky(m.Q_s + 1e-30 * np.eye(2))
     K = ps.s.size
     level, var, err = np.full(K, np.nan), np.full(K, np.nan), np.zeros((K, draws))
     loglik, nu2, s2 = 0.0, np.zeros(nb), np.zeros(nb)
     iz, ig, last = nx, nx + N, nx + N - 1
+    off = np.arange(ig + 1, n)
+    Rm = np.diag(R)
     for k in range(K):
+        c = k % CHUNK
+        if c == 0:  # a chunk's transitions and random numbers at once
+            j = slice(k, min(k + CHUNK, K - 1))
+            Phis, Es = m.transitions(np.diff(ps.t[j.start:j.stop + 1]), ps.v[j], ps.v[j.start + 1:j.stop + 1])
+            e_meas = np.sqrt(R)[None, :, None] * rng.standard_normal((CHUNK, nb, draws))
+            e_front = Lq @ rng.standard_normal((CHUNK, 2, draws))
+            e_off = np.sqrt(q_off)[None, :, None] * rng.standard_normal((CHUNK, nb, draws))
         H = m.measurement(ps.v[k], ps.a[k])
-        Yk = np.column_stack([Y[k], H @ T + np.sqrt(R)[:, None] * rng.standard_normal((nb, draws))])
-        nu = Yk - H @ X
+        HZ = H @ Z
+        nu = np.concatenate([Y[k][:, None], HZ[:, tru] + e_meas[c]], axis=1) - HZ[:, est]
         PHt = P @ H.T
-        S = H @ PHt + np.diag(R)
-        L = np.linalg.cholesky(S)
-        wv = scipy.linalg.solve_triangular(L, nu[:, 0], lower=True)
-        loglik -= 0.5 * (wv @ wv) + np.log(np.diag(L)).sum()
+        S = H @ PHt + Rm
+        Sinv = np.linalg.inv(S)
+        loglik -= 0.5 * (nu[:, 0] @ Sinv @ nu[:, 0] + np.linalg.slogdet(S)[1])
         nu2 += nu[:, 0] ** 2
         s2 += np.diag(S)
-        G = scipy.linalg.cho_solve((L, True), PHt.T).T
-        X = X + G @ nu
-        P = P - G @ PHt.T
-        level[k], var[k] = X[last, 0], P[last, last]
-        err[k] = X[last, 1:] - T[last]
+        G = PHt @ Sinv
+        Z[:, est] += G @ nu
+        P -= G @ PHt.T
+        level[k], var[k] = Z[last, 0], P[last, last]
+        err[k] = Z[last, 1:1 + draws] - Z[last, tru]
         if k + 1 < K:
-            if k % CHUNK == 0:
-                j = slice(k, min(k + CHUNK, K - 1))
-                Phis, Es = m.transitions(np.diff(ps.t[j.start:j.stop + 1]), ps.v[j], ps.v[j.start + 1:j.stop + 1])
-            Phi_x, E = Phis[k % CHUNK], Es[k % CHUNK]
-            X = _predict(m, X, Phi_x, E)
-            T = _predict(m, T, Phi_x, E)
-            T[[iz, ig]] += Lq @ rng.standard_normal((2, draws))
-            T[ig + 1:] += np.sqrt(q_off)[:, None] * rng.standard_normal((nb, draws))
-            P = _predict(m, _predict(m, P, Phi_x, E).T, Phi_x, E)
+            Z = _predict(m, Z, Phis[c], Es[c])
+            Z[[iz, ig], tru] += e_front[c]
+            Z[ig + 1:, tru] += e_off[c]
+            P = _predict(m, _predict(m, P, Phis[c], Es[c]).T, Phis[c], Es[c])
             P = 0.5 * (P + P.T)
-            P[np.ix_([iz, ig], [iz, ig])] += m.Q_s
-            P[ig + 1:, ig + 1:] += np.diag(q_off)
+            P[iz, iz] += m.Q_s[0, 0]
+            P[iz, ig] += m.Q_s[0, 1]
+            P[ig, iz] += m.Q_s[1, 0]
+            P[ig, ig] += m.Q_s[1, 1]
+            P[off, off] += q_off
     distance = ps.s + m.lag_offset
     ratio = {c.name: float(nu2[r] / s2[r]) for r, c in enumerate(ps.channels)}
     return PassProfile(ps.run_id, distance, level, np.sqrt(np.maximum(var, 0.0)), float(loglik), ratio, err)

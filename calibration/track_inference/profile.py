@@ -192,6 +192,15 @@ def changes(distance: np.ndarray, before: np.ndarray, after: np.ndarray, step: f
         score, i, j, depth = best
         if abs(score) < threshold:
             break
+        # the shape that explains most of the difference there: the score favours short shapes
+        # (their depth is the less certain, but the spread is measured along the whole line)
+        near = slice(max(0, i - int(6.0 / step)), i + int(6.0 / step) + 1)
+        fits = []
+        for jj, (_, t) in enumerate(templates):
+            amp = -scipy.signal.correlate(d, t, mode="same")[near] / np.dot(t, t)
+            ii = int(np.argmax(np.abs(amp)))
+            fits.append((amp[ii] ** 2 * np.dot(t, t), near.start + ii, jj, float(amp[ii])))
+        _, i, j, depth = max(fits)
         found.append(Change(float(distance[i]), templates[j][0], depth, score))
         t = templates[j][1]
         half = t.size // 2
