@@ -175,7 +175,10 @@ def infer_track(campaign, calibration: dict, args, files: dict) -> str:
     result = infer(campaign, p, extras=extras(calibration, args.calibration), bogie_dx=bogie_dx,
                    gyro_gain=gyro_gain, settings=settings, progress=progress_for(args))
     if earlier is not None:
-        result = compare(result, earlier.distance, earlier.level)
+        try:
+            result = compare(result, earlier.distance, earlier.level)
+        except ValueError as e:
+            raise InputError(str(e), path=Path(args.compare)) from None
     s = result.section
     written = [write_profile(files["csv"], s.distance, s.level["D1"], s.std["D1"], s.passes["D1"], "D1")]
     usable = result.d2_usable()[0]

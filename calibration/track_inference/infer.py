@@ -130,6 +130,10 @@ def compare(result: TrackResult, distance: np.ndarray, level: np.ndarray, *, max
     """``result`` with the changes from an earlier D1 profile (``distance``, ``level`` [m])."""
     s = result.section
     ok = s.passes["D1"] > 0
+    lo, hi = max(distance[0], s.distance[ok][0]), min(distance[-1], s.distance[ok][-1])
+    if hi - lo < 10 * max_offset:
+        raise ValueError(f"the earlier profile ({distance[0]:.0f}-{distance[-1]:.0f} m) overlaps this one "
+                         f"({s.distance[ok][0]:.0f}-{s.distance[ok][-1]:.0f} m) by less than {10 * max_offset:g} m")
     offset, _ = best_offset(distance, level, s.distance[ok], s.level["D1"][ok], s.distance[1] - s.distance[0],
                             max_offset)
     before = np.interp(s.distance, distance - offset, level, left=np.nan, right=np.nan)
