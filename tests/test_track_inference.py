@@ -108,6 +108,18 @@ def test_changes_find_a_settled_dip_where_it_is_and_nothing_else():
     assert changes(d, before, before + rng.normal(0, 1e-4, d.size), STEP)[0] == []
 
 
+def test_a_profile_is_compared_only_with_one_it_overlaps():
+    from calibration.track_inference.infer import TrackResult, compare
+    from calibration.track_inference.profile import SectionProfile
+
+    d = np.arange(0.0, 2000.0, STEP)
+    level = {"D1": np.zeros(d.size), "D2": np.full(d.size, np.nan)}
+    sec = SectionProfile(d, level, dict(level), {"D1": np.ones(d.size, int), "D2": np.zeros(d.size, int)}, {}, {})
+    result = TrackResult(sec, (), (), KalmanSettings(), False, (), 0.0)
+    with pytest.raises(ValueError, match="overlaps"):
+        compare(result, np.array([5000.0, 6000.0]), np.zeros(2))
+
+
 def test_settings_are_checked():
     with pytest.raises(ValueError, match="step"):
         KalmanSettings(step=0.0)
