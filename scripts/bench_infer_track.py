@@ -25,6 +25,9 @@ Kalman estimate of the same pass (its default settings, not fitted) and the clas
 inertial method (:mod:`calibration.track_inference.inertial`, axle boxes) are scored on
 the same stretch.
 
+``--own-truth`` runs the cases on railcal's own truth instead (seed 33500 + j, same
+length and journeys; no dip): the filter's own car made that data, so it checks the code.
+
 Forecast, written before the first run (2026-11-29, from two development campaigns,
 seeds 33000 and line 77, which are not bench seeds): bogie sensors only, D1 correlation
 >= 0.98 and RMSE <= 0.15 mm after the shift on every case, >= 0.95 at the profile's own
@@ -181,6 +184,40 @@ def case(j: int, keep: Path, ce: bool, ce_length: float, ce_only: bool = False) 
     return out
 
 
+def own_case(j: int, keep: Path) -> dict:
+    """Case j on railcal's own truth (seed 33500 + j, the same length and journeys; its car is
+    the filter's own 2D car, so this checks the code, not the method)."""
+    from calibration.truth.in_service import InServiceSettings, draw_truth_parameters, synth_in_service
+    from calibration.truth.track import Line, LineSpec
+
+    seed = 33500 + j
+    settings = InServiceSettings(journeys=JOURNEYS, line=LineSpec(length=LENGTH_KM * 1000.0))
+    keep.mkdir(parents=True, exist_ok=True)
+    camp, cal = keep / "own", keep / "own_calibration.json"
+    if not camp.exists():
+        synth_in_service(camp, seed=seed, settings=settings)
+    if not cal.exists():
+        _run(["calibrate", str(camp), "--out", str(cal), "--quiet"])
+    rng = np.random.default_rng(seed)  # the truth's line is drawn right after its car
+    draw_truth_parameters(settings, rng)
+    line = Line(settings.line, rng)
+    fine = np.arange(0.0, settings.line.length, STEP)
+    level = line.level(fine)[0]
+    out = {"case": j, "seed": seed, "sets": {}}
+    for tag, extra in (("bogie", []), ("axle_boxes", ["--axle-boxes"])):
+        csv = keep / f"own_{tag}.csv"
+        for path in keep.glob(f"own_{tag}*"):
+            path.unlink()
+        _run(["infer-track", str(camp), "--calibration", str(cal), "--out", str(csv), "--quiet", *extra])
+        res = {}
+        for band, path in (("D1", csv), ("D2", keep / f"own_{tag}_d2.csv")):
+            if path.exists():
+                d, z = _read_profile(path)
+                res[band] = _score(d, z, np.interp(d, fine, band_filter(level, band, STEP)))
+        out["sets"][tag] = res
+    return out
+
+
 def _print(r: dict) -> None:
     print(f"case {r['case']} (line {r['seeds']['line']}, dip at {r['seeds']['dip_centre']:.1f} m)")
     for tag, s in r["sets"].items():
@@ -223,7 +260,23 @@ def main() -> None:
     ap.add_argument("--no-ce", action="store_true", help="leave out the Cross-Entropy baseline")
     ap.add_argument("--ce-length", type=float, default=1000.0, help="[m] of journey 1 the CE baseline infers")
     ap.add_argument("--ce-only", action="store_true", help="the CE baseline alone (on kept campaigns)")
+    ap.add_argument("--own-truth", action="store_true", help="the cases on railcal's own truth instead")
     args = ap.parse_args()
+    if args.own_truth:
+        with tempfile.TemporaryDirectory() as tmp:
+            root = Path(args.keep or tmp)
+            js = list(range(args.from_case, args.from_case + args.cases))
+            with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+                results = list(pool.map(own_case, js, [root / f"case{j}" for j in js]))
+        for r in results:
+            for tag, bands in r["sets"].items():
+                for band, x in bands.items():
+                    print(f"own truth seed {r['seed']} {tag:10s} {band}: at position corr "
+                          f"{x['at_position']['corr']:.4f} RMSE {x['at_position']['rmse_mm']:.3f} mm; shifted "
+                          f"{x['shifted']['shift_m']:+.2f} m corr "
+                          f"{x['shifted']['corr']:.4f} RMSE {x['shifted']['rmse_mm']:.3f} mm (true rms "
+                          f"{x['true_rms_mm']:.3f})")
+        return
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep or tmp)
         js = range(args.from_case, args.from_case + args.cases)
