@@ -83,6 +83,9 @@ class TrackResult:
             "prior": {"spectrum": k.spectrum, "roughness": k.roughness, "fitted": self.fitted},
             "noise": {kind: k.noise[kind] for kind in sorted({c.kind for p in self.passes for c in p.channels})},
             "bands": bands,
+            # the section sits at the passes' mean GPS position: its standard error
+            "position_std_m": (float(np.std(list(s.offsets.values()), ddof=1) / np.sqrt(len(s.offsets)))
+                               if len(s.offsets) >= 2 else None),
             "passes": [{"run_id": p.run_id, "from_m": float(p.s[0]), "to_m": float(p.s[-1]),
                         "mean_speed_m_s": float(np.mean(p.v)), "offset_m": s.offsets.get(p.run_id),
                         "correlation_with_reference": _finite(s.correlation.get(p.run_id)),
