@@ -55,6 +55,13 @@ single pass sits 0.4 m off), 0.7-1.3 s per km; the inertial method 0.972 / 0.908
 The forecast held but for the other changes. Earlier, on 25708a4 (before a change's shape
 was chosen by the difference it explains): the same profiles, and the 10 m dip taken as a
 4-8 m one with its side lobes as further changes (1-4 per case).
+
+``--own-truth`` (code 393ef3d; no forecast was written for it): D1 at the profile's own
+position 0.9879 / 0.9260 / 0.9941, RMSE 0.147 / 0.354 / 0.101 mm; after the best shift
+(+0.09 / -0.64 / -0.01 m) 0.9891 / 0.9908 / 0.9941, 0.139 / 0.125 / 0.101 mm; D2 0.976 /
+0.960 / 0.980, RMSE 0.315-0.435 mm; the axle boxes the same within 0.004. Worse than on
+the exudyn truth: case 1's passes sit 0.64 m off on average, and after the shift the error
+is still about twice the exudyn truth's. Not yet explained.
 """
 from __future__ import annotations
 
