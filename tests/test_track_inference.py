@@ -9,51 +9,20 @@ import json
 
 import numpy as np
 import pytest
-import scipy.signal
 
 from calibration.data.tracks import read_track_file
-from calibration.models.car2d import Output, build_car, state_space, wheelset_positions
-from calibration.models.simulate import simulate
 from calibration.models.track_irregularity import german_vertical_psd, synthesise_profile
-from calibration.models.vehicles import VEHICLES
 from calibration.track_inference.kalman import KalmanSettings, PassProfile, infer_pass
-from calibration.track_inference.passes import Channel, Pass
 from calibration.track_inference.profile import band_filter, changes, combine
 from railcal.cli import main
 
-STEP, FS = 0.25, 500.0
-NOISE = {"bogie_acc": 0.02, "gyro": 3e-4}
+from track_passes import FS, NOISE, STEP, own_pass
 
-
-def _own_pass(length=1200.0, v0=35.0, seed=1):
-    """The intercity car's bogie accelerometer and gyro over a German-spectrum profile at a
-    varying speed, with white noise, on the distance grid (as read_passes makes it)."""
-    p = VEHICLES["intercity"]
-    rng = np.random.default_rng(seed)
-    sx, zx = synthesise_profile(german_vertical_psd, length + 200.0, 0.05, rng, min_wavelength=1.0,
-                                max_wavelength=200.0)
-    sx = sx - 100.0
-    t = np.arange(0, length / v0, 1 / FS)
-    v = v0 + 3 * np.sin(2 * np.pi * t / 20)
-    s = np.concatenate([[0], np.cumsum(0.5 * (v[1:] + v[:-1]) / FS)])
-    xw = wheelset_positions(p)
-    outs = [Output("acc", "acceleration", "bogie1", p.L_v + 0.45), Output("gyro", "pitch_rate", "bogie1")]
-    slope = np.gradient(zx, sx)
-    w = np.column_stack([np.interp(s + x, sx, zx) for x in xw] + [v * np.interp(s + x, sx, slope) for x in xw])
-    y = simulate(state_space(build_car(p), outs), w, 1 / FS, x0="static")
-    y += rng.normal(0, 1, y.shape) * [NOISE["bogie_acc"], NOISE["gyro"]]
-    grid = np.arange(s[0], s[-1], STEP)
-    tg = np.interp(grid, s, t)
-    sos = scipy.signal.butter(4, 30.0, fs=FS, output="sos")
-    chans = (Channel("acc", "bogie_acc", np.interp(tg, t, scipy.signal.sosfiltfilt(sos, y[:, 0])), x=p.L_v + 0.45),
-             Channel("gyro", "gyro", np.interp(tg, t, scipy.signal.sosfiltfilt(sos, y[:, 1]))))
-    ps = Pass("own", grid, tg, np.interp(tg, t, v), np.interp(tg, t, np.gradient(v, t)), chans)
-    return p, ps, (sx, zx)
 
 
 @pytest.fixture(scope="module")
 def own():
-    p, ps, (sx, zx) = _own_pass()
+    p, ps, (sx, zx) = own_pass(1200.0)
     # the noise on the grid: the white noise's rms through the 30 Hz low-pass
     noise = {k: v * np.sqrt(30.0 / (FS / 2)) for k, v in NOISE.items()}
     pr = infer_pass(ps, p, KalmanSettings(noise=noise), draws=16)
