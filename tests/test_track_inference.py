@@ -45,6 +45,16 @@ def test_the_error_draws_give_the_error_size_on_the_models_own_data(own):
     assert 0.5 < actual / formal < 2.0
 
 
+def test_an_extended_model_is_filtered_with_its_additions():
+    """A diagnosis's extended car (here a flexible carbody) is the filter's car as it stands."""
+    from calibration.models.car2d import CarExtras
+
+    p, ps, _ = own_pass(200.0)
+    plain = infer_pass(ps, p, KalmanSettings(), draws=0)
+    bent = infer_pass(ps, p, KalmanSettings(), extras=CarExtras(bending_hz=9.0), draws=0)
+    assert np.all(np.isfinite(bent.level)) and bent.log_likelihood != plain.log_likelihood
+
+
 def _profile(run_id, distance, level, std=1e-4):
     return PassProfile(run_id, distance, level, np.full(level.size, std), 0.0, {},
                        np.random.default_rng(len(run_id)).normal(0, std, (level.size, 4)))
