@@ -180,15 +180,17 @@ def infer_track(campaign, calibration: dict, args, files: dict) -> str:
         except ValueError as e:
             raise InputError(str(e), path=Path(args.compare)) from None
     s = result.section
+    out = result.to_json()
+    out["campaign_sha256"] = campaign.fingerprint()
+    out["plot"] = str(plot_profile(result, files["png"]))
     written = [write_profile(files["csv"], s.distance, s.level["D1"], s.std["D1"], s.passes["D1"], "D1")]
     usable = result.d2_usable()[0]
     if usable:
         written.append(write_profile(files["d2"], s.distance, s.level["D2"], s.std["D2"], s.passes["D2"], "D2"))
-    out = result.to_json()
-    out["campaign_sha256"] = campaign.fingerprint()
+    else:  # an earlier run's D2 beside this summary would be taken for this run's
+        Path(files["d2"]).unlink(missing_ok=True)
     out["profile"], out["profile_d2"] = str(files["csv"]), str(files["d2"]) if usable else None
-    out["plot"] = str(plot_profile(result, files["png"]))
-    write_result(files["json"], out, "track-profile")
+    write_result(files["json"], out, "track-profile")  # last: a summary means every file it names is there
     d1 = out["bands"]["D1"]
     found = ""
     if result.changes is not None:

@@ -217,8 +217,9 @@ def cmd_infer_track(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
         raise InputError(f"the profile is a CSV file: give --out with .csv, got {out.name!r}", key="--out")
-    if not args.step > 0 or args.step > 1.0:
-        raise InputError(f"--step must be within (0, 1] m (D1 reaches 3 m wavelengths), got {args.step}", key="--step")
+    if not 0.05 <= args.step <= 1.0:
+        raise InputError(f"--step must be within 0.05-1 m (D1 reaches 3 m wavelengths), got {args.step}",
+                         key="--step")
     files = {"csv": out, "d2": out.with_name(out.stem + "_d2.csv"), "json": out.with_suffix(".json"),
              "png": out.with_suffix(".png")}
     check_outputs(list(files.values()), inputs=[args.campaign, path, args.compare, _truth_path(args.campaign)])

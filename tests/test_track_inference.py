@@ -134,15 +134,29 @@ def test_infer_track_writes_a_d1_profile_a_summary_and_a_figure(small_campaign, 
     assert 0.2 < summary["bands"]["D1"]["level_rms_mm"] < 5.0
     assert summary["bands"]["D1"]["std_median_mm"] < summary["bands"]["D1"]["level_rms_mm"]
     assert out.with_suffix(".png").exists() and "inferred the D1 level" in printed
+    assert (summary["profile_d2"] is None) == (not out.with_name("profile_d2.csv").exists())
+    # an earlier profile with a 4 mm dip at its middle and a 60 m hole elsewhere: the dip shows as
+    # a rise since, the hole as nothing
+    mid = rec.distance[rec.distance.size // 2]
+    dip = np.where(np.abs(rec.distance - mid) < 5.0, 4e-3 * 0.5 * (1 + np.cos(2 * np.pi * (rec.distance - mid) / 10)),
+                   0.0)
+    keep = np.abs(rec.distance - (rec.distance[0] + 300.0)) > 30.0
+    earlier = root.parent / "earlier.csv"
+    level = rec.level - band_filter(dip, "D1", STEP)
+    earlier.write_text('# band = "D1"\ndistance,level\n' + "".join(
+        f"{float(d)!r},{float(z)!r}\n" for d, z in zip(rec.distance[keep], level[keep])))
     again = root.parent / "again.csv"
-    assert main(["infer-track", str(root), "--calibration", str(cal), "--out", str(again), "--compare", str(out),
+    assert main(["infer-track", str(root), "--calibration", str(cal), "--out", str(again), "--compare", str(earlier),
                  "--quiet"]) == 0
-    assert json.loads(again.with_suffix(".json").read_text())["changes"] == []
+    found = json.loads(again.with_suffix(".json").read_text())["changes"]
+    assert len(found) == 1 and abs(found[0]["centre_m"] - mid) < 1.0
+    assert found[0]["depth_mm"] == pytest.approx(-4.0, rel=0.1)
 
 
 @pytest.mark.parametrize("change, message", [
     ({"out": "profile.txt"}, "--out"),
     ({"step": "0"}, "--step"),
+    ({"step": "1e-4"}, "--step"),
     ({"compare": "d2.csv"}, "D1 profile"),
     ({"calibration": "box.json"}, "box"),
 ])
@@ -152,11 +166,96 @@ def test_infer_track_refuses_bad_input_with_exit_2(small_campaign, tmp_path, cap
     (tmp_path / "d2.csv").write_text('# band = "D2"\ndistance,level\n0,0\n1,0\n')
     (tmp_path / "box.json").write_text(json.dumps({"format": "railcal-calibration/1", **example_calibration("box")}))
     args = {"out": "p.csv", "step": "0.25", "compare": None, "calibration": str(cal), **change}
-    argv = ["infer-track", str(root), "--calibration", str(tmp_path / args["calibration"]) if change.get(
-        "calibration") else args["calibration"], "--out", str(tmp_path / args["out"]), "--step", args["step"], "--quiet"]
+    calibration = str(tmp_path / args["calibration"]) if change.get("calibration") else args["calibration"]
+    argv = ["infer-track", str(root), "--calibration", calibration, "--out", str(tmp_path / args["out"]), "--step",
+            args["step"], "--quiet"]
     if args["compare"]:
         argv += ["--compare", str(tmp_path / args["compare"])]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
     assert not (tmp_path / "p.csv").exists()
+
+
+# ------------------------------------------------------------------- reading passes
+def _copy_campaign(src, dst, edit):
+    """A copy of campaign ``src`` whose run file's columns are edited by ``edit(columns)``."""
+    import shutil
+
+    from calibration.data.outputs import write_csv
+    from calibration.data.tables import read_csv
+
+    shutil.copytree(src, dst)
+    path = next((dst / "runs").glob("*.csv"))
+    cols = dict(read_csv(path).columns)
+    edit(cols)
+    with open(path, "wb") as f:
+        write_csv(f, cols)
+    return dst
+
+
+def test_a_run_split_at_an_invalid_sample_gives_passes_of_their_own_names(small_campaign, tmp_path):
+    from calibration.data.campaign import open_campaign
+    from calibration.track_inference.passes import read_passes
+
+    def nan_in_the_middle(cols):
+        cols["bogie1_acc_z"] = cols["bogie1_acc_z"].copy()
+        cols["bogie1_acc_z"][cols["bogie1_acc_z"].size // 2] = np.nan
+
+    root = _copy_campaign(small_campaign[0], tmp_path / "c", nan_in_the_middle)
+    passes = read_passes(open_campaign(root), step=STEP)
+    assert [p.run_id for p in passes] == ["journey_001:1", "journey_001:2"]
+    assert passes[0].s[-1] < passes[1].s[0]
+
+
+@pytest.mark.parametrize("drop, warning", [("distance", "no distance column"), ("speed", "no speed column")])
+def test_a_run_with_one_position_column_is_read_with_a_warning(small_campaign, tmp_path, drop, warning):
+    from calibration.data.campaign import open_campaign
+    from calibration.track_inference.passes import read_passes
+
+    root = _copy_campaign(small_campaign[0], tmp_path / "c", lambda cols: cols.pop(drop))
+    with pytest.warns(UserWarning, match=warning):
+        passes = read_passes(open_campaign(root), step=STEP)
+    assert len(passes) == 1 and passes[0].s[-1] - passes[0].s[0] > 1000.0
+
+
+def test_a_biased_speed_is_scaled_to_the_gps_distance():
+    """0.5 % too high a speed would drift 50 m over 10 km; fitted to the GPS it stays put."""
+    from types import SimpleNamespace
+    from pathlib import Path
+
+    from calibration.track_inference.passes import line_position
+
+    t = np.arange(0.0, 300.0, 0.01)
+    true = 33.0 * t
+    gps = true + 1.5 * np.sin(2 * np.pi * t / 60.0)  # a wandering fix
+    run = SimpleNamespace(time=t, speed=np.full(t.size, 33.0 * 1.005), distance=gps, path=Path("r.csv"))
+    assert np.max(np.abs(line_position(run, Path("runs")) - true)) < 1.0
+
+
+def test_the_inertial_method_integrates_the_rail_acceleration_twice():
+    from calibration.track_inference.inertial import inertial_level
+    from calibration.track_inference.passes import Channel, Pass
+
+    p, ps, (sx, zx) = own_pass(600.0)
+    from calibration.models.car2d import wheelset_positions
+
+    xw = wheelset_positions(p)
+    slope, curv = np.gradient(zx, sx), np.gradient(np.gradient(zx, sx), sx)
+    axles = tuple(Channel(f"axle{j + 1}", "axle", ps.v ** 2 * np.interp(ps.s + xw[j], sx, curv)
+                          + ps.a * np.interp(ps.s + xw[j], sx, slope) + 9.81, wheelset=j + 1) for j in (0, 1))
+    d, z = inertial_level(Pass(ps.run_id, ps.s, ps.t, ps.v, ps.a, axles), xw)
+    inner = slice(int(60 / STEP), d.size - int(60 / STEP))
+    true = band_filter(np.interp(d, sx, zx), "D1", STEP)
+    assert np.corrcoef(z[inner], true[inner])[0, 1] > 0.99
+
+
+def test_the_noise_search_follows_the_data():
+    """The filter's default noise is several times the pass's: the search brings it down."""
+    from calibration.track_inference.kalman import fit_noise
+
+    p, ps, _ = own_pass(400.0)
+    start = KalmanSettings(noise={"bogie_acc": 0.1, "gyro": 0.01})
+    fitted, ll = fit_noise(ps, p, start, length=400.0)
+    assert fitted.noise["bogie_acc"] < 0.05 and fitted.noise["gyro"] < 0.005
+    assert ll > infer_pass(ps, p, start, draws=0).log_likelihood

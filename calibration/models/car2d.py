@@ -223,6 +223,15 @@ def _carbody_rest(p: CarParameters, ex: CarExtras) -> tuple[float, float, float]
     return m, x, J
 
 
+def with_campaign_geometry(p: CarParameters, geometry: dict) -> tuple[CarParameters, dict]:
+    """``p`` with the campaign's measured L_v and L_b (its ``[vehicle]`` bogie_semi_spacing and
+    semi_wheelbase) where they differ from the calibration's, and what changed: the sensors'
+    positions and the rail's timing refer to the campaign's own geometry."""
+    given = {"L_v": geometry.get("bogie_semi_spacing"), "L_b": geometry.get("semi_wheelbase")}
+    changed = {k: v for k, v in given.items() if v is not None and abs(v - getattr(p, k)) > 1e-6}
+    return (p.replace(**changed) if changed else p), changed
+
+
 def wheel_level_gain(p: CarParameters, extras: CarExtras) -> float:
     """On a flexible track (``extras.track_stiffness``) a wheelset's coordinate is the centre
     of mass of the wheelset and its track mass; the wheelset itself is that plus this

@@ -5,7 +5,8 @@ A wheelset on the rail follows its level r(s): its acceleration is v^2 r'' + a r
 distance grid, r'' = (acc - a r') / v^2, and r' is taken from the previous estimate (one
 fixed-point pass; a r' is a few per cent of v^2 r'' at the train's accelerations). The
 double integral is done in the wavenumber domain, inside the band asked for, where it is
-a division by -(2 pi k)^2; the offset (gravity) and everything longer than the band go.
+a division by -(2 pi k)^2, over twice the band's wavelengths, then filtered to the band as
+every other estimate is; the offset (gravity) and the longest waves go.
 Each axle's estimate is placed at its own wheelset's position and the two are averaged.
 
 It needs no vehicle model, which is its strength; the axle box also carries what the
@@ -18,6 +19,7 @@ import numpy as np
 
 from ..data.tracks import BAND_WAVELENGTHS_M
 from .passes import Pass
+from .profile import band_filter
 
 
 def _integrate_twice(x: np.ndarray, step: float, band: tuple[float, float]) -> np.ndarray:
@@ -38,7 +40,8 @@ def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.
     if not axles:
         raise ValueError("the pass has no axle-box channel (read it with axle_boxes=True)")
     step = float(ps.s[1] - ps.s[0])
-    limits = BAND_WAVELENGTHS_M[band]
+    lo, hi = BAND_WAVELENGTHS_M[band]
+    limits = (max(lo / 2, 2 * step), 2 * hi)  # integrated wide, then filtered as every other estimate
     grid = ps.s + wheel_x[0]
     levels = []
     for c in axles:
@@ -46,4 +49,4 @@ def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.
         r = _integrate_twice(acc / ps.v ** 2, step, limits)
         r = _integrate_twice((acc - ps.a * np.gradient(r, step)) / ps.v ** 2, step, limits)
         levels.append(np.interp(grid, ps.s + wheel_x[c.wheelset - 1], r))
-    return grid, np.mean(levels, axis=0)
+    return grid, band_filter(np.mean(levels, axis=0), band, step)

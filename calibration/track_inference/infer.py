@@ -3,17 +3,18 @@ section's profile, with the summary the command writes beside it."""
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .. import checks
 from ..data.campaign import Campaign
-from ..models.car2d import CarExtras
+from ..models.car2d import CarExtras, with_campaign_geometry
 from ..models.parameters import CarParameters
 from .kalman import KalmanSettings, PassProfile, fit_noise, infer_pass
 from .passes import Pass, read_passes
-from .profile import BANDS, Change, SectionProfile, best_offset, changes, combine
+from .profile import BANDS, Change, SectionProfile, best_offset, changes, combine, interp_gapped
 
 #: D2 is written where its standard deviation is under this fraction of the level's rms
 D2_USABLE = 0.5
@@ -21,8 +22,8 @@ D2_USABLE = 0.5
 
 @dataclass(frozen=True)
 class InferSettings:
-    """axle_boxes: use the leading bogie's axle boxes too; fit: estimate the spectrum's level
-    and the channels' noise from the first pass (:func:`~.kalman.fit_noise`) over
+    """axle_boxes: use the leading bogie's axle boxes too; fit: choose the spectrum's level
+    and the channels' noise on the longest pass (:func:`~.kalman.fit_noise`), over its first
     ``fit_length`` [m]; draws: error draws per pass for the standard deviations;
     max_offset [m]: how far passes may be shifted to align them."""
 
@@ -62,6 +63,7 @@ class TrackResult:
 
     def to_json(self) -> dict:
         s, k = self.section, self.settings
+        aligned = [s.offsets[q] for q in s.offsets if np.isfinite(s.correlation.get(q, np.nan))]
         bands = {}
         for band in BANDS:
             ok = s.passes[band] > 0
@@ -83,9 +85,10 @@ class TrackResult:
             "prior": {"spectrum": k.spectrum, "roughness": k.roughness, "fitted": self.fitted},
             "noise": {kind: k.noise[kind] for kind in sorted({c.kind for p in self.passes for c in p.channels})},
             "bands": bands,
-            # the section sits at the passes' mean GPS position: its standard error
-            "position_std_m": (float(np.std(list(s.offsets.values()), ddof=1) / np.sqrt(len(s.offsets)))
-                               if len(s.offsets) >= 2 else None),
+            # the section sits at the aligned passes' mean GPS position: its standard error (unknown
+            # for one pass, whose GPS error nothing here measures)
+            "position_std_m": (float(np.std(aligned, ddof=1) / np.sqrt(len(aligned))) if len(aligned) >= 2
+                               else None),
             "passes": [{"run_id": p.run_id, "from_m": float(p.s[0]), "to_m": float(p.s[-1]),
                         "mean_speed_m_s": float(np.mean(p.v)), "offset_m": s.offsets.get(p.run_id),
                         "correlation_with_reference": _finite(s.correlation.get(p.run_id)),
@@ -107,6 +110,10 @@ def infer_track(campaign: Campaign, p: CarParameters, *, extras: CarExtras | Non
                 gyro_gain: float = 1.0, settings: InferSettings = InferSettings(), progress=None) -> TrackResult:
     """The level under the campaign's leading bogie, every pass combined."""
     t0 = time.perf_counter()
+    p, geometry = with_campaign_geometry(p, campaign.meta.geometry)
+    if geometry:
+        warnings.warn(f"{campaign.root / 'campaign.toml'}: the calibration's geometry differs from the campaign's "
+                      f"[vehicle]; using the campaign's {geometry}", stacklevel=2)
     k = settings.kalman
     passes = read_passes(campaign, step=k.step, axle_boxes=settings.axle_boxes, bogie_dx=bogie_dx,
                          min_length=settings.min_length, progress=progress)
@@ -139,7 +146,7 @@ def compare(result: TrackResult, distance: np.ndarray, level: np.ndarray, *, max
                          f"({s.distance[ok][0]:.0f}-{s.distance[ok][-1]:.0f} m) by less than {10 * max_offset:g} m")
     offset, _ = best_offset(distance, level, s.distance[ok], s.level["D1"][ok], s.distance[1] - s.distance[0],
                             max_offset)
-    before = np.interp(s.distance, distance - offset, level, left=np.nan, right=np.nan)
+    before = interp_gapped(s.distance, distance - offset, level)
     found, _ = changes(s.distance, before, np.where(ok, s.level["D1"], np.nan), s.distance[1] - s.distance[0],
                        threshold=threshold)
     return replace(result, changes=tuple(found), compared_offset=offset)

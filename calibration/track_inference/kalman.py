@@ -24,13 +24,13 @@ is C x + D u, an axle box the rail's own acceleration, v^2 r'' + a r'.
 Every profile point stays in the register until ``lag`` metres behind the trailing
 wheelset: its estimate when it leaves uses every measurement taken while any wheelset was
 on it and after, for as long as the bogie still responds to it. That is a fixed-lag
-smoother. A longer lag is not better here: consecutive points are then read given data
-sets that differ by more steps, and what remains uncertain at long wavelengths shows up
-as jitter in D1 (a 24 m or 40 m lag gave 1.3-2x the D1 error of 12 m on the development
-campaigns). Its variance is the filter's for that cell.
+smoother. A longer lag was not better: 24 m and 40 m gave 1.3-2x the D1 error of 12 m on
+the development campaigns, and with the spectrum not flattened even the model's own error
+draws grew with the lag, so that what remains uncertain at long wavelengths is the likely
+cause (not established). Its variance is the filter's for that cell.
 
-The spectrum's level and each channel's noise are not taken on trust: they are estimated
-from the data by maximum likelihood on the innovations (:func:`fit_noise`).
+The spectrum's level and each channel's noise are not taken on trust: they are chosen
+from the data by a coarse likelihood search on the innovations (:func:`fit_noise`).
 """
 from __future__ import annotations
 
@@ -78,7 +78,8 @@ class KalmanSettings:
 class PassProfile:
     """A pass's inferred level ``level`` [m] with its standard deviation ``std`` [m] (all
     wavelengths) at ``distance`` [m] along the line, the log-likelihood of its measurements
-    and each channel's mean squared innovation over its predicted variance."""
+    and each channel's squared innovation over its predicted variance, averaged over the
+    steps after the register's first fill (1 when the filter's noise and prior are right)."""
 
     run_id: str
     distance: np.ndarray
@@ -209,7 +210,8 @@ class _Model:
         lags = h * np.arange(N)
         ac = np.array([(scipy.linalg.expm(self.F_s * d) @ self.P_inf)[0, 0] for d in lags])
         P[nx:nx + N, nx:nx + N] = scipy.linalg.toeplitz(ac)
-        cross = np.array([(scipy.linalg.expm(self.F_s * d) @ self.P_inf)[0, 1] for d in lags])
+        # cell i against the front's slope: E[r'(s) r(s - i step)], row 1 of exp(F d) P_inf
+        cross = np.array([(scipy.linalg.expm(self.F_s * d) @ self.P_inf)[1, 0] for d in lags])
         P[nx:nx + N, nx + N] = P[nx + N, nx:nx + N] = cross
         P[nx + N, nx + N] = self.P_inf[1, 1]
         P[:nx, :nx] = np.eye(nx) * 1e-4
@@ -257,7 +259,7 @@ def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: 
     Lq = np.linalg.cholesky(m.Q_s + 1e-30 * np.eye(2))
     K = ps.s.size
     level, var, err = np.full(K, np.nan), np.full(K, np.nan), np.zeros((K, draws))
-    loglik, nu2, s2 = 0.0, np.zeros(nb), np.zeros(nb)
+    loglik, ratio_sum = 0.0, np.zeros(nb)
     iz, ig, last = nx, nx + N, nx + N - 1
     off = np.arange(ig + 1, n)
     Rm = np.diag(R)
@@ -276,8 +278,8 @@ def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: 
         S = H @ PHt + Rm
         Sinv = np.linalg.inv(S)
         loglik -= 0.5 * (nu[:, 0] @ Sinv @ nu[:, 0] + np.linalg.slogdet(S)[1])
-        nu2 += nu[:, 0] ** 2
-        s2 += np.diag(S)
+        if k >= N:  # once the register holds measured profile, not the prior's start
+            ratio_sum += nu[:, 0] ** 2 / np.diag(S)
         G = PHt @ Sinv
         Z[:, est] += G @ nu
         P -= G @ PHt.T
@@ -295,7 +297,7 @@ def infer_pass(ps: Pass, p: CarParameters, settings: KalmanSettings, *, extras: 
             P[ig, ig] += m.Q_s[1, 1]
             P[off, off] += q_off
     distance = ps.s + m.lag_offset
-    ratio = {c.name: float(nu2[r] / s2[r]) for r, c in enumerate(ps.channels)}
+    ratio = {c.name: float(ratio_sum[r] / max(K - N, 1)) for r, c in enumerate(ps.channels)}
     return PassProfile(ps.run_id, distance, level, np.sqrt(np.maximum(var, 0.0)), float(loglik), ratio, err)
 
 

@@ -2,10 +2,12 @@
 sensors resampled on a uniform distance grid of the car's centre.
 
 The inverse works in distance, where the track is stationary and the car's speed is a
-known, slowly varying coefficient. A run's distance axis is its speed integrated and
-anchored on the GPS distance (:func:`~calibration.identification.fdd.distance_axis`), as
-validation does; the channels are low-passed in time (zero phase) below the grid's
-Nyquist wavenumber at the stretch's lowest speed, then read at the grid points' times.
+known, slowly varying coefficient. A run's position is its speed integrated, scaled and
+shifted to fit its GPS distance (:func:`line_position`). The channels are low-passed in
+time (zero phase) below the grid's Nyquist wavenumber at the speed where each sample was
+taken, then read at the grid points' times. A stretch ends where the car is slower than
+3 m/s, at a gap and at an invalid sample; a run of several stretches gives passes named
+``run:1``, ``run:2``, ...
 
 Sensors used: the leading bogie's vertical accelerometers and pitch gyro and, when asked
 for, the leading bogie's axle boxes (the two boxes of an axle averaged, which cancels the
@@ -13,7 +15,8 @@ axle's roll over cross level).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.signal
@@ -45,7 +48,7 @@ class Pass:
     grid points' times ``t`` [s], speed ``v`` [m/s] and longitudinal acceleration ``a``
     [m/s^2]."""
 
-    run_id: str
+    run_id: str  # unique: the run's id, with ":k" for the k-th stretch of a run split into several
     s: np.ndarray
     t: np.ndarray
     v: np.ndarray
@@ -90,13 +93,9 @@ def read_passes(campaign: Campaign, *, step: float, axle_boxes: bool = False, bo
     names = [b[0] for b in bogie] + [n for group in axles.values() for n in group]
     out = []
     for run in campaign.iter_runs():
-        if run.speed is None and run.distance is None:
-            continue
-        d = distance_axis(run.distance, run.speed, run.time)
-        if run.speed is not None:  # integrated speed, anchored on the blended axis (as validation)
-            d_speed = distance_axis(None, run.speed, run.time)
-            d = d_speed + np.median(d - d_speed)
+        d = line_position(run, campaign.root / "runs")
         fs = 1.0 / float(np.median(np.diff(run.time)))
+        stretches = []
         for a, b in run.blocks:
             t, dd = run.time[a:b], d[a:b]
             if t.size < 4:
@@ -109,14 +108,41 @@ def read_passes(campaign: Campaign, *, step: float, axle_boxes: bool = False, bo
                 p = _one_pass(run, names, bogie, axles, t[i0:i1], dd[i0:i1], v[i0:i1], a + i0, fs, step,
                               max_lowpass)
                 if p is not None:
-                    out.append(p)
-                    if progress:
-                        progress(f"infer-track: {run.run_id} {p.s[0]:.0f}-{p.s[-1]:.0f} m at "
-                                 f"{np.mean(p.v):.1f} m/s mean")
+                    stretches.append(p)
+        for k, p in enumerate(stretches):
+            if len(stretches) > 1:
+                p = replace(p, run_id=f"{run.run_id}:{k + 1}")
+            out.append(p)
+            if progress:
+                progress(f"infer-track: {p.run_id} {p.s[0]:.0f}-{p.s[-1]:.0f} m at {np.mean(p.v):.1f} m/s mean")
     if not out:
         raise CampaignError(f"no run has a stretch of at least {min_length:g} m above {MIN_SPEED:g} m/s with "
                             f"valid {', '.join(names)}", path=campaign.root / "runs")
     return out
+
+
+def line_position(run, where) -> np.ndarray:
+    """[m] The run's position along the line at its samples: the speed integrated, scaled
+    and shifted to fit the GPS distance by least squares (a speed that reads a fraction
+    high would otherwise drift by tens of metres over a journey; the GPS's own wander of
+    metres is not followed). With one of the two columns only, that one, with a warning:
+    speed alone gives no position on the line (it starts at 0 m), distance alone carries
+    the GPS's wander into every wavelength."""
+    if run.speed is None:
+        warnings.warn(f"{where / run.path.name}: no speed column; the position along the line is the GPS distance "
+                      "alone, and its wander blurs the profile", stacklevel=3)
+        return distance_axis(run.distance, None, run.time)
+    d_speed = distance_axis(None, run.speed, run.time)
+    if run.distance is None:
+        warnings.warn(f"{where / run.path.name}: no distance column; the position along the line is the speed "
+                      "integrated from 0 m at the run's start", stacklevel=3)
+        return d_speed
+    ok = np.isfinite(run.distance)
+    A = np.column_stack([np.ones(ok.sum()), d_speed[ok]])
+    coef = np.linalg.lstsq(A, run.distance[ok], rcond=None)[0]
+    if not 0.9 < coef[1] < 1.1:  # not a scale error of the speed: some other fault, keep the speed's own
+        coef = np.array([np.median(run.distance[ok] - d_speed[ok]), 1.0])
+    return coef[0] + coef[1] * d_speed
 
 
 def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -134,11 +160,21 @@ def _one_pass(run, names, bogie, axles, t, d, v, first, fs, step, max_lowpass) -
     sos = scipy.signal.butter(2, 0.2, fs=fs, output="sos")
     v_smooth = scipy.signal.sosfiltfilt(sos, v) if v.size > 30 else v
     ag = np.interp(tg, t, np.gradient(v_smooth, t))
-    cutoff = min(max_lowpass, 0.8 * float(v.min()) / (2 * step))
     sl = slice(first, first + t.size)
+    # below the grid's Nyquist wavenumber at the local speed: each sample takes the highest of
+    # a ladder of cutoffs (steps of sqrt 2) that is under 0.8 v / (2 step) where it was taken
+    ladder = max_lowpass / np.sqrt(2.0) ** np.arange(12)
+    need = 0.8 * v / (2 * step)
+    rung = np.minimum(np.searchsorted(-ladder, -need, side="left"), ladder.size - 1)
+    rung_g = np.interp(tg, t, rung).round().astype(int)
 
     def on_grid(name):
-        return np.interp(tg, t, _lowpass(run.channels[name][sl], cutoff, fs))
+        x = run.channels[name][sl]
+        out = np.empty(tg.size)
+        for r in np.unique(rung_g):
+            at = rung_g == r
+            out[at] = np.interp(tg[at], t, _lowpass(x, ladder[r], fs))
+        return out
 
     chans = [Channel(n, kind, on_grid(n), x=x) for n, kind, x, _ in bogie]
     for j, group in sorted(axles.items()):

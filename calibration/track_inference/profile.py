@@ -74,18 +74,29 @@ def banded(pp: PassProfile, band: str, step: float) -> BandedPass | None:
     return BandedPass(pp.run_id, pp.distance[keep], level, std)
 
 
+def interp_gapped(at: np.ndarray, d: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``x`` (on ``d``) at ``at``, NaN outside ``d`` and inside its gaps (a spacing over 1.5
+    times its median): a profile is not drawn across what it does not cover."""
+    y = np.interp(at, d, x, left=np.nan, right=np.nan)
+    if d.size > 2:
+        i = np.clip(np.searchsorted(d, at), 1, d.size - 1)
+        y[(d[i] - d[i - 1]) > 1.5 * np.median(np.diff(d))] = np.nan
+    return y
+
+
 def best_offset(ref_d: np.ndarray, ref: np.ndarray, d: np.ndarray, x: np.ndarray, step: float,
                 max_offset: float) -> tuple[float, float]:
     """(offset [m], correlation): the sample of ``x`` at ``d`` lies at ``d + offset`` on
-    ``ref``'s axis ``ref_d`` (the shift within +-``max_offset`` that best matches them)."""
+    ``ref``'s axis ``ref_d`` (the shift within +-``max_offset`` that best matches them,
+    over what both cover); correlation NaN where they overlap by under 4 ``max_offset``."""
     lo, hi = max(ref_d[0], d[0]), min(ref_d[-1], d[-1])
     if hi - lo < 4 * max_offset:
         return 0.0, float("nan")
     grid = np.arange(lo + max_offset, hi - max_offset, step)
-    r = np.interp(grid, ref_d, ref)
+    r = np.nan_to_num(interp_gapped(grid, ref_d, ref))
     lags = np.arange(-int(max_offset / step), int(max_offset / step) + 1)
-    score = np.array([np.dot(r, np.interp(grid - lag * step, d, x)) for lag in lags])
-    norm = np.linalg.norm(r) * np.linalg.norm(np.interp(grid, d, x)) + 1e-300
+    score = np.array([np.dot(r, np.nan_to_num(interp_gapped(grid - lag * step, d, x))) for lag in lags])
+    norm = np.linalg.norm(r) * np.linalg.norm(np.nan_to_num(interp_gapped(grid, d, x))) + 1e-300
     k = int(np.argmax(score))
     shift = parabolic_shift(score, k) if 0 < k < lags.size - 1 else 0.0
     return float((lags[k] + shift) * step), float(score[k] / norm)
@@ -114,8 +125,10 @@ def combine(profiles: list[PassProfile], step: float, *, max_offset: float = 10.
     for b in d1:
         offsets[b.run_id], corr[b.run_id] = (
             (0.0, 1.0) if b is ref else best_offset(ref.distance, ref.level, b.distance, b.level, step, max_offset))
-    mean_offset = float(np.mean(list(offsets.values())))
-    offsets = {k: v - mean_offset for k, v in offsets.items()}
+    # a pass that could not be aligned (too little overlap) keeps its own GPS position
+    aligned = [k for k in offsets if np.isfinite(corr[k])]
+    mean_offset = float(np.mean([offsets[k] for k in aligned]))
+    offsets = {k: v - mean_offset if k in aligned else v for k, v in offsets.items()}
     lo = min(pp.distance[0] for pp in profiles) - max_offset
     hi = max(pp.distance[-1] for pp in profiles) + max_offset
     grid = np.arange(np.floor(lo / step) * step, hi, step)
@@ -176,16 +189,23 @@ def changes(distance: np.ndarray, before: np.ndarray, after: np.ndarray, step: f
     d = np.where(ok, diff, 0.0)
     pad = 4 * _window("D1", step)
     templates = [(length, band_filter(np.pad(_dip(length, step), pad), "D1", step)) for length in lengths]
+    # a position counts where the shape and one longest D1 wavelength either side are covered
+    valid = []
+    for length, _ in templates:
+        half = int((length / 2 + BAND_WAVELENGTHS_M["D1"][1]) / step)
+        valid.append(scipy.ndimage.minimum_filter1d(ok.astype(np.int8), 2 * half + 1, mode="constant") > 0)
+    if not any(v.any() for v in valid):
+        return [], diff
     spreads = []
-    for _, t in templates:  # the robust spread of each length's depth estimate along the line
-        amp = -scipy.signal.correlate(d, t, mode="same") / np.dot(t, t)
-        spreads.append(max(1.4826 * np.median(np.abs(amp[ok] - np.median(amp[ok]))), 1e-12))
+    for (_, t), v in zip(templates, valid):  # the robust spread of each length's depth estimate along the line
+        amp = -scipy.signal.correlate(d, t, mode="same")[v] / np.dot(t, t)
+        spreads.append(max(1.4826 * np.median(np.abs(amp - np.median(amp))), 1e-12) if amp.size else np.inf)
     found = []
     for _ in range(most):
         best = (0.0, 0, 0, 0.0)  # score, position, template, depth
         for j, (length, t) in enumerate(templates):
             amp = -scipy.signal.correlate(d, t, mode="same") / np.dot(t, t)
-            score = np.where(ok, amp / spreads[j], 0.0)
+            score = np.where(valid[j], amp / spreads[j], 0.0)
             i = int(np.argmax(np.abs(score)))
             if abs(score[i]) > abs(best[0]):
                 best = (float(score[i]), i, j, float(amp[i]))
@@ -197,7 +217,7 @@ def changes(distance: np.ndarray, before: np.ndarray, after: np.ndarray, step: f
         near = slice(max(0, i - int(6.0 / step)), i + int(6.0 / step) + 1)
         fits = []
         for jj, (_, t) in enumerate(templates):
-            amp = -scipy.signal.correlate(d, t, mode="same")[near] / np.dot(t, t)
+            amp = np.where(valid[jj], -scipy.signal.correlate(d, t, mode="same") / np.dot(t, t), 0.0)[near]
             ii = int(np.argmax(np.abs(amp)))
             fits.append((amp[ii] ** 2 * np.dot(t, t), near.start + ii, jj, float(amp[ii])))
         _, i, j, depth = max(fits)

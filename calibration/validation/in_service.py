@@ -44,7 +44,7 @@ from ..data.campaign import Campaign
 from ..data.errors import CampaignError
 from ..data.tracks import BAND_WAVELENGTHS_M
 from ..identification.fdd import distance_axis
-from ..models.car2d import CarExtras, Output, build_car, state_space, wheelset_positions
+from ..models.car2d import CarExtras, Output, build_car, state_space, wheelset_positions, with_campaign_geometry
 from ..models.parameters import CarParameters
 from ..models.simulate import ModalSimulator
 from ..signals.peaks import parabolic_shift
@@ -169,12 +169,10 @@ def validate(campaign: Campaign, p: CarParameters, *, extras: CarExtras | None =
     if len(tracks) > 1:
         warnings.warn(f"{campaign.root / 'track'}: validating over {track.path.name} only; "
                       f"{', '.join(t.path.name for t in tracks[1:])} not used", stacklevel=2)
-    geometry = {"L_v": meta.geometry.get("bogie_semi_spacing"), "L_b": meta.geometry.get("semi_wheelbase")}
-    geometry = {k: v for k, v in geometry.items() if v is not None and abs(v - getattr(p, k)) > 1e-6}
-    if geometry:  # the sensors' positions refer to the campaign's measured geometry
+    p, geometry = with_campaign_geometry(p, meta.geometry)
+    if geometry:
         warnings.warn(f"{campaign.root / 'campaign.toml'}: the calibration's geometry differs from the campaign's "
                       f"[vehicle]; using the campaign's {geometry}", stacklevel=2)
-        p = p.replace(**geometry)
     trim = 4 * BANDS_M[track.band][1]
     band = BANDS_M[track.band]
     slope = np.gradient(track.level, track.distance)
