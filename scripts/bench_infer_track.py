@@ -25,6 +25,8 @@ Kalman estimate of the same pass (its default settings, not fitted) and the clas
 inertial method (:mod:`calibration.track_inference.inertial`, axle boxes) are scored on
 the same stretch.
 
+``--wall`` times one whole 10 km pass of a kept case, the Kalman filter then CE.
+
 ``--own-truth`` runs the cases on railcal's own truth instead (seed 33500 + j, same
 length and journeys; no dip): the filter's own car made that data, so it checks the code.
 
@@ -210,6 +212,36 @@ def case(j: int, keep: Path, ce: bool, ce_length: float, ce_only: bool = False) 
     return out
 
 
+def wall_10km(root: Path) -> None:
+    """One whole pass (journey 1 of case ``root``, 10 km) by the Kalman filter (its search for
+    the noise, then filter and draws) and by CE, one after the other in this process."""
+    from calibration.track_inference.cross_entropy import CESettings, infer_pass_ce
+    from calibration.track_inference.kalman import fit_noise
+
+    p = CarParameters.from_mapping(json.loads((root / "calibration.json").read_text())["parameters"])
+    line = truth_line(json.loads((root / "before.truth.json").read_text()))
+    ps = read_passes(open_campaign(root / "before"), step=STEP)[0]
+    fine = np.arange(line.s[0], line.s[-1], STEP)
+    truth = band_filter(line.level(fine), "D1", STEP)
+
+    def score(pr):
+        inner = slice(int(100 / STEP), pr.level.size - int(100 / STEP))
+        z = band_filter(pr.level, "D1", STEP)[inner]
+        ref = np.interp(pr.distance[inner], fine, truth)
+        return f"corr {np.corrcoef(z, ref)[0, 1]:.4f} RMSE {1e3 * np.sqrt(np.mean((z - ref) ** 2)):.3f} mm"
+
+    t0 = time.perf_counter()
+    settings, _ = fit_noise(ps, p, KalmanSettings())
+    t1 = time.perf_counter()
+    kf = infer_pass(ps, p, settings)
+    t2 = time.perf_counter()
+    print(f"{ps.run_id}, {(ps.s[-1] - ps.s[0]) / 1e3:.2f} km at {ps.v.mean():.1f} m/s: Kalman {t2 - t0:.1f} s "
+          f"(search {t1 - t0:.1f} s), {score(kf)}", flush=True)
+    t0 = time.perf_counter()
+    ce = infer_pass_ce(ps, p, CESettings())
+    print(f"  CE {time.perf_counter() - t0:.1f} s, {score(ce)}", flush=True)
+
+
 def own_case(j: int, keep: Path) -> dict:
     """Case j on railcal's own truth (seed 33500 + j, the same length and journeys; its car is
     the filter's own 2D car, so this checks the code, not the method)."""
@@ -287,7 +319,12 @@ def main() -> None:
     ap.add_argument("--ce-length", type=float, default=1000.0, help="[m] of journey 1 the CE baseline infers")
     ap.add_argument("--ce-only", action="store_true", help="the CE baseline alone (on kept campaigns)")
     ap.add_argument("--own-truth", action="store_true", help="the cases on railcal's own truth instead")
+    ap.add_argument("--wall", action="store_true", help="time one whole 10 km pass of case --from-case (kept in "
+                    "--keep), the Kalman filter against CE")
     args = ap.parse_args()
+    if args.wall:
+        wall_10km(Path(args.keep) / f"case{args.from_case}")
+        return
     if args.own_truth:
         with tempfile.TemporaryDirectory() as tmp:
             root = Path(args.keep or tmp)
