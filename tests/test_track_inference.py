@@ -231,6 +231,11 @@ def test_a_biased_speed_is_scaled_to_the_gps_distance():
     gps = true + 1.5 * np.sin(2 * np.pi * t / 60.0)  # a wandering fix
     run = SimpleNamespace(time=t, speed=np.full(t.size, 33.0 * 1.005), distance=gps, path=Path("r.csv"))
     assert np.max(np.abs(line_position(run, Path("runs")) - true)) < 1.0
+    # a right speed is not scaled to the wander: a slow 1.5 m drift of the fixes leaves it be
+    drift = true + 1.5 * np.sin(np.pi * t / 300.0)
+    run = SimpleNamespace(time=t, speed=np.full(t.size, 33.0), distance=drift, path=Path("r.csv"))
+    d = line_position(run, Path("runs"))
+    assert np.ptp(d - true) < 1e-6 and abs(np.mean(d - true)) < 1.5
 
 
 def test_the_inertial_method_integrates_the_rail_acceleration_twice():
