@@ -253,6 +253,20 @@ def test_the_inertial_method_integrates_the_rail_acceleration_twice():
     inner = slice(int(60 / STEP), d.size - int(60 / STEP))
     true = band_filter(np.interp(d, sx, zx), "D1", STEP)
     assert np.corrcoef(z[inner], true[inner])[0, 1] > 0.99
+    # blended into a level that knows nothing under 8 m, the short waves are the axle boxes'
+    from dataclasses import replace
+
+    from calibration.track_inference.inertial import blend
+
+    long_only = band_filter(np.interp(d, sx, zx), "D2", STEP)  # a stand-in for the filter's level
+    pp = _profile("own", d, long_only)
+    mixed = blend(pp, replace(ps, channels=axles), xw, 8.0)
+    from calibration.track_inference.inertial import _lowpass_distance
+
+    level = np.interp(d, sx, zx)
+    expected = _lowpass_distance(long_only, 8.0, STEP) + level - _lowpass_distance(level, 8.0, STEP)
+    got, want = band_filter(mixed.level, "D1", STEP)[inner], band_filter(expected, "D1", STEP)[inner]
+    assert np.corrcoef(got, want)[0, 1] > 0.99
 
 
 def test_the_noise_search_follows_the_data():

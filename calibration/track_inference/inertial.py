@@ -15,9 +15,13 @@ roundness), and at long wavelengths v^2 r'' is tiny beside the sensor's noise.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import scipy.signal
 
 from ..data.tracks import BAND_WAVELENGTHS_M
+from .kalman import PassProfile
 from .passes import Pass
 from .profile import band_filter
 
@@ -50,3 +54,29 @@ def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.
         r = _integrate_twice((acc - ps.a * np.gradient(r, step)) / ps.v ** 2, step, limits)
         levels.append(np.interp(grid, ps.s + wheel_x[c.wheelset - 1], r))
     return grid, band_filter(np.mean(levels, axis=0), band, step)
+
+
+def _lowpass_distance(x: np.ndarray, wavelength: float, step: float) -> np.ndarray:
+    sos = scipy.signal.butter(4, 1.0 / wavelength, fs=1.0 / step, output="sos")
+    return scipy.signal.sosfiltfilt(sos, x)
+
+
+def blend(pp: PassProfile, ps: Pass, wheel_x: np.ndarray, crossover: float) -> PassProfile:
+    """``pp`` (the filter's level of pass ``ps``) with its wavelengths under ``crossover`` [m]
+    taken from the axle boxes' double integral instead: the seed's "axle boxes at short
+    wavelengths, the model at long ones". The split is complementary (a zero-phase low-pass
+    L of the filter's level plus the integral minus L of it), so nothing is counted twice.
+    The error draws stay the filter's: the standard deviation does not cover the change."""
+    step = float(ps.s[1] - ps.s[0])
+    axles = [c for c in ps.channels if c.kind == "axle"]
+    grid = ps.s + wheel_x[0]
+    levels = []
+    for c in axles:
+        acc = c.values - np.mean(c.values)
+        r = _integrate_twice(acc / ps.v ** 2, step, (max(1.5, 2 * step), 4 * crossover))
+        r = _integrate_twice((acc - ps.a * np.gradient(r, step)) / ps.v ** 2, step, (max(1.5, 2 * step),
+                                                                                     4 * crossover))
+        levels.append(np.interp(grid, ps.s + wheel_x[c.wheelset - 1], r))
+    short = np.interp(pp.distance, grid, np.mean(levels, axis=0))
+    short = short - _lowpass_distance(short, crossover, step)
+    return replace(pp, level=_lowpass_distance(pp.level, crossover, step) + short)

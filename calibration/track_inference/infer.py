@@ -10,8 +10,9 @@ import numpy as np
 
 from .. import checks
 from ..data.campaign import Campaign
-from ..models.car2d import CarExtras, with_campaign_geometry
+from ..models.car2d import CarExtras, wheelset_positions, with_campaign_geometry
 from ..models.parameters import CarParameters
+from .inertial import blend
 from .kalman import KalmanSettings, PassProfile, fit_noise, infer_pass
 from .passes import Pass, read_passes
 from .profile import BANDS, Change, SectionProfile, best_offset, changes, combine, interp_gapped
@@ -25,7 +26,9 @@ class InferSettings:
     """axle_boxes: use the leading bogie's axle boxes too; fit: choose the spectrum's level
     and the channels' noise on the longest pass (:func:`~.kalman.fit_noise`), over its first
     ``fit_length`` [m]; draws: error draws per pass for the standard deviations;
-    max_offset [m]: how far passes may be shifted to align them."""
+    max_offset [m]: how far passes may be shifted to align them; crossover [m]: with axle
+    boxes, the wavelength under which their double integral replaces the filter's level
+    (:func:`~.inertial.blend`; 8 m, the middle of D1 on a log scale)."""
 
     kalman: KalmanSettings = field(default_factory=KalmanSettings)
     axle_boxes: bool = False
@@ -34,9 +37,10 @@ class InferSettings:
     draws: int = 8
     max_offset: float = 10.0
     min_length: float = 200.0
+    crossover: float = 8.0
 
     def __post_init__(self):
-        checks.positive(self, "fit_length", "max_offset", "min_length")
+        checks.positive(self, "fit_length", "max_offset", "min_length", "crossover")
         checks.whole(self, "draws", minimum=0)
 
 
@@ -126,7 +130,10 @@ def infer_track(campaign: Campaign, p: CarParameters, *, extras: CarExtras | Non
                      + ", ".join(f"{c} {k.noise[c]:.3g}" for c in kinds))
     profiles = []
     for i, ps in enumerate(passes):
-        profiles.append(infer_pass(ps, p, k, extras=extras, gyro_gain=gyro_gain, draws=settings.draws, seed=i))
+        pr = infer_pass(ps, p, k, extras=extras, gyro_gain=gyro_gain, draws=settings.draws, seed=i)
+        if settings.axle_boxes:
+            pr = blend(pr, ps, wheelset_positions(p), settings.crossover)
+        profiles.append(pr)
         if progress:
             progress(f"infer-track: {ps.run_id} {ps.s[-1] - ps.s[0]:.0f} m inferred")
     section = combine(profiles, k.step, max_offset=settings.max_offset)
