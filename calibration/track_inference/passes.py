@@ -128,9 +128,9 @@ def line_position(run, where) -> np.ndarray:
     onto the GPS distance (the median difference), and scaled to it where the least-squares
     scale differs from 1 by more than three standard errors of the GPS's wander: a speed
     that reads 0.3 % high would drift 30 m over 10 km, while a scale fitted to the wander
-    alone moved the ends of a 10 km pass by a metre (bench, 2d4a3e5). With one of the two columns only, that one, with a warning:
-    speed alone gives no position on the line (it starts at 0 m), distance alone carries
-    the GPS's wander into every wavelength."""
+    alone moved the ends of a 10 km pass by a metre on the bench. With one of the two
+    columns only, that one, with a warning: speed alone gives no position on the line (it
+    starts at 0 m), distance alone carries the GPS's wander into every wavelength."""
     if run.speed is None:
         warnings.warn(f"{where / run.path.name}: no speed column; the position along the line is the GPS distance "
                       "alone, and its wander blurs the profile", stacklevel=3)
