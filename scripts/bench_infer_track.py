@@ -25,7 +25,10 @@ Kalman estimate of the same pass (its default settings, not fitted) and the clas
 inertial method (:mod:`calibration.track_inference.inertial`, axle boxes) are scored on
 the same stretch.
 
-``--wall`` times one whole 10 km pass of a kept case, the Kalman filter then CE.
+``--wall`` times one whole 10 km pass of a kept case, the Kalman filter then CE. Measured
+(71e2e85, case 0, journey 1 at 24.7 m/s, beside the test suite): the Kalman filter 13.7 s
+(6.5 s of it the noise search), D1 correlation 0.991, RMSE 0.123 mm; CE 182.9 s, 0.803,
+0.555 mm.
 
 ``--own-truth`` runs the cases on railcal's own truth instead (seed 33500 + j, same
 length and journeys; no dip): the filter's own car made that data, so it checks the code.
