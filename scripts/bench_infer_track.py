@@ -67,12 +67,14 @@ one that explains most of the difference); on e66d49c, before the review's mends
 position 0.9976 / 0.9959 / 0.9967; on 2d4a3e5 the speed was scaled to every GPS fit and
 D1 at position fell to 0.955-0.985 with 18-49 false changes (mended in 2882af4).
 
-``--own-truth`` (code 393ef3d; no forecast was written for it): D1 at the profile's own
-position 0.9879 / 0.9260 / 0.9941, RMSE 0.147 / 0.354 / 0.101 mm; after the best shift
-(+0.09 / -0.64 / -0.01 m) 0.9891 / 0.9908 / 0.9941, 0.139 / 0.125 / 0.101 mm; D2 0.976 /
-0.960 / 0.980, RMSE 0.315-0.435 mm; the axle boxes the same within 0.004. Worse than on
-the exudyn truth: case 1's passes sit 0.64 m off on average, and after the shift the error
-is still about twice the exudyn truth's. Not yet explained.
+``--own-truth`` (code 71e2e85; no forecast was written for it): D1 at the profile's own
+position 0.9859 / 0.9173 / 0.9880, RMSE 0.160 / 0.374 / 0.144 mm; after the best shift
+(-0.14 / -0.69 / +0.19 m) 0.9889 / 0.9908 / 0.9938, 0.141 / 0.125 / 0.104 mm; D2 0.974 /
+0.959 / 0.981, RMSE 0.308-0.441 mm; with the axle boxes D1 0.9907 / 0.9197 / 0.9892.
+Case 1's passes sit 0.69 m off on average (the mean GPS error of its three journeys,
+about twice what the same GPS model's 30 s wander leaves on average; the exudyn cases sat
+within 0.13 m), which at position takes it past 0.3 mm; after the shift the error is
+still about twice the exudyn truth's, not yet explained. (On 393ef3d, before the review's mends: 0.9879 / 0.9260 / 0.9941.)
 """
 from __future__ import annotations
 
