@@ -74,7 +74,8 @@ position 0.9859 / 0.9173 / 0.9880, RMSE 0.160 / 0.374 / 0.144 mm; after the best
 Case 1's passes sit 0.69 m off on average (the mean GPS error of its three journeys,
 about twice what the same GPS model's 30 s wander leaves on average; the exudyn cases sat
 within 0.13 m), which at position takes it past 0.3 mm; after the shift the error is
-still about twice the exudyn truth's, not yet explained. (On 393ef3d, before the review's mends: 0.9879 / 0.9260 / 0.9941.)
+still about twice the exudyn truth's, not yet explained. (On 393ef3d, before the review's
+mends: 0.9879 / 0.9260 / 0.9941.)
 """
 from __future__ import annotations
 
