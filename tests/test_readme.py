@@ -6,16 +6,17 @@ so each section runs in a fresh folder of its own, block after block, line after
 the ``railcal`` of this environment first on the PATH. A command that exits non-zero, or
 does not write the files its ``--out`` names, fails the test.
 
-A step that the section's ``railcal run`` has already done with the same command line
-(its ``--out`` aside) and inputs of the same content is not run a second time: the run ran
-it as the railcal command of that name, and the test checks that it succeeded, printed a
-summary naming what it wrote, and takes its result under the README's name (the in-service
-identification and diagnosis cost half a minute each, the whole section a minute and more).
+A step that the section's ``railcal run`` has already done with the same options (as
+railcal's parser reads them; its ``--out`` aside, and the tour's files taken from the run
+for the run's) is not run a second time: the run ran it as the railcal command of that
+name, and the test checks that it succeeded, printed a summary naming what it wrote, and
+takes its result under the README's name (the in-service identification and diagnosis
+cost half a minute each, the whole section a minute and more).
 """
 from __future__ import annotations
 
-import os
 import json
+import os
 import re
 import shlex
 import shutil
@@ -62,17 +63,17 @@ def test_the_readme_has_a_tour_and_stays_a_guide():
 def test_the_tour_runs_as_written(section, tmp_path):
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
     steps: list[dict] = []  # the steps a `railcal run` of this section did
-    same: dict[str, str] = {}  # a file the tour wrote -> the run's file of the same content
+    taken: dict[str, str] = {}  # a file of the tour -> the run's file it was taken from
     for line in SECTIONS[section]:
         argv = shlex.split(line)
         assert argv[0] == "railcal", f"the tour runs railcal commands only: {line!r}"
-        step = _done_by_the_run(argv, steps, same)
+        step = _done_by_the_run(argv, steps, taken)
         if step is not None:
             ran = tmp_path / _out(step["command"])
             assert ran.exists(), f"{line!r}: the run's {step['name']} did not write {ran.name}"
             assert step["summary"] and ran.name in step["summary"], f"{line!r}: the run's summary: {step}"
             shutil.copyfile(ran, tmp_path / _out(argv))
-            same[_out(argv)] = _out(step["command"])
+            taken[_out(argv)] = _out(step["command"])
             continue
         done = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
         assert done.returncode == 0, f"{line!r} exited {done.returncode}:\n{done.stderr[-3000:]}"
@@ -83,39 +84,26 @@ def test_the_tour_runs_as_written(section, tmp_path):
             assert out.name in done.stdout, f"{line!r}: the summary does not name {out.name}"
         if argv[1] == "run":
             steps = json.loads((tmp_path / _out(argv) / "run.json").read_text())["steps"]
-        else:
-            same.update(_alike_results(argv, steps, tmp_path))
 
 
 def _out(argv) -> str:
     return argv[argv.index("--out") + 1]
 
 
-def _without_out(argv) -> list[str]:
-    i = argv.index("--out")
-    return [*argv[:i], *argv[i + 2:]]
+def _options(argv, taken) -> dict:
+    """The options railcal's parser reads from the command line ``argv`` with the files in
+    ``taken`` replaced by the run's, but for its ``--out``."""
+    from railcal.cli import build_parser
+
+    options = vars(build_parser().parse_args([taken.get(a, a) for a in argv[1:]]))
+    del options["out"]
+    return options
 
 
-def _done_by_the_run(argv, steps, same) -> dict | None:
-    """The run's step done with ``argv``'s command but for its ``--out`` and for the tour's
-    files of the same content as the run's (``same``)."""
+def _done_by_the_run(argv, steps, taken) -> dict | None:
+    """The run's step done with ``argv``'s options (:func:`_options`)."""
     if "--out" not in argv:
         return None
-    wanted = [same.get(a, a) for a in _without_out(argv)]
+    options = _options(argv, taken)
     return next((s for s in steps if s.get("status") == "done" and "--out" in s.get("command", ())
-                 and _without_out(s["command"]) == wanted), None)
-
-
-def _alike_results(argv, steps, root) -> dict[str, str]:
-    """{the JSON ``argv`` wrote: the JSON of the run's step of the same command} when both
-    hold the same result (every key but the names of the figures each wrote beside itself)."""
-    if "--out" not in argv or not _out(argv).endswith(".json"):
-        return {}
-
-    def result(path):
-        return {k: v for k, v in json.loads((root / path).read_text()).items() if k not in ("plot", "plots")}
-
-    mine = result(_out(argv))
-    return {_out(argv): _out(s["command"]) for s in steps
-            if s.get("status") == "done" and "--out" in s.get("command", ()) and s["command"][1] == argv[1]
-            and _out(s["command"]).endswith(".json") and result(_out(s["command"])) == mine}
+                 and _options(s["command"], {}) == options), None)
