@@ -103,10 +103,11 @@ def _reused_nlp(family: LinearFamily, p_start: np.ndarray, w_target: tuple, step
     other factor, sharing a node that a parameter would not, so a family whose mass is not
     I, or with an entry 1 or -1 in a K_j, is built the constant way."""
     n, names = len(family.dofs), family.names
+    if not np.array_equal(family.M0, np.eye(n)) or any(np.any(family.M_unit[k]) for k in names):
+        return None
     units = [np.asarray(family.K_unit[k], float) for k in names]
     scaled = [p_start[j] * K for j, K in enumerate(units)]
-    if (not np.array_equal(family.M0, np.eye(n)) or any(np.any(family.M_unit[k]) for k in names)
-            or any(np.any(np.abs(K) == 1) for K in units + scaled)):
+    if any(np.any(np.abs(K) == 1) for K in units + scaled):
         return None
     stiffness = [np.asarray(family.K0, float), *scaled]
     key = (w_target, step_weight, tol, max_iter, *((A.shape, np.packbits(A != 0).tobytes()) for A in stiffness))
