@@ -243,17 +243,28 @@ def synthetic_campaign(tmp_path_factory):
 @pytest.fixture(scope="session")
 def synthetic_identification(synthetic_campaign, tmp_path_factory):
     """``railcal identify`` run once on the synthetic campaign: (its --out path, the
-    one-line summary it printed)."""
+    one-line summary it printed, the identification it made: ``identify_in_service`` at its
+    default settings, which test_identify.py examines, so that it is not made twice)."""
     import contextlib
     import io
 
+    import calibration.identification.in_service as in_service
     from railcal.cli import main
+
+    identify, made = in_service.identify_in_service, []
+
+    def kept(*args, **kwargs):
+        assert kwargs.get("settings", in_service.IdentifySettings()) == in_service.IdentifySettings()
+        made.append(identify(*args, **kwargs))
+        return made[-1]
 
     out = tmp_path_factory.mktemp("identified") / "new_folder" / "ident.json"  # a missing folder is created
     printed = io.StringIO()
-    with contextlib.redirect_stdout(printed):
+    with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stdout(printed):
+        patch.setattr(in_service, "identify_in_service", kept)
         assert main(["identify", str(synthetic_campaign[0]), "--out", str(out), "--quiet"]) == 0
-    return out, printed.getvalue()
+    (result,) = made
+    return out, printed.getvalue(), result
 
 
 COARSE_BOX_ORDERS = -4  # every panel order - 4: the shaker-test files stay fast, the physics is the same

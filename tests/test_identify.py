@@ -18,9 +18,10 @@ from calibration.truth.track import LineSpec
 
 
 @pytest.fixture(scope="module")
-def identified(synthetic_campaign):
-    root, truth = synthetic_campaign
-    return identify_in_service(open_campaign(root)), truth
+def identified(synthetic_campaign, synthetic_identification):
+    """(identification, truth) of the synthetic campaign: the one `railcal identify` made
+    (``identify_in_service`` at its default settings)."""
+    return synthetic_identification[2], synthetic_campaign[1]
 
 
 def test_rigid_body_modes_are_found_within_tolerance(identified):
@@ -97,7 +98,7 @@ def test_trailing_rail_is_the_leading_rail_seen_2_L_v_later(synthetic_campaign):
 
 
 def test_identify_command_writes_modes_and_rejected_peaks(synthetic_identification):
-    out, printed = synthetic_identification  # into a folder that did not exist
+    out, printed, _ = synthetic_identification  # into a folder that did not exist
     data = json.loads(out.read_text())
     assert {m["label"] for m in data["modes"]} == set(RIGID_LABELS)
     assert all({"label", "frequency_hz"} <= set(m) for m in data["modes"])

@@ -207,3 +207,66 @@ def test_the_swarm_stops_only_when_the_target_holds_on_the_exact_objective():
                          settings=PSOSettings(particles=30, iterations=500, target=1e-4), adapt=objective.adapt)
     assert objective.exact and res.reached_target
     assert ((res.best - 2.0) ** 2).sum() <= 1e-4  # judged exactly, not by the approximation
+
+
+class _ReducedBox:
+    """A family of the reduced box's form (mass I, stiffness K0 + sum_j p_j K_j, dense),
+    its modes labelled by their order."""
+
+    def __init__(self, seed: int, n: int = 12, d: int = 3):
+        rng = np.random.default_rng(seed)
+        sym = [(A + A.T) / 2 for A in rng.standard_normal((d + 1, n, n))]
+        self.dofs, self.names = tuple(range(n)), tuple(f"f{j}" for j in range(d))
+        self.M0, self.K0 = np.eye(n), sym[0] + 3 * n * np.eye(n)
+        self.M_unit = {k: np.zeros((n, n)) for k in self.names}
+        self.K_unit = {k: A + n * np.eye(n) for k, A in zip(self.names, sym[1:])}
+
+    def _modes(self, p):
+        return np.linalg.eigh(self.K0 + sum(v * self.K_unit[k] for k, v in zip(self.names, p)))
+
+    def frequencies(self, P) -> dict:
+        w2 = np.array([self._modes(p)[0] for p in P])
+        return {f"mode_{i}": np.sqrt(w2[:, i]) / (2 * np.pi) for i in range(len(self.dofs))}
+
+    def labelled_mode(self, p, label):
+        w2, X = self._modes(p)
+        return float(w2[int(label[5:])]), X[:, int(label[5:])]
+
+
+def test_the_refinements_reused_nlp_does_the_arithmetic_of_one_built_for_the_call(monkeypatch):
+    """The box refines in rounds with one NLP, its stiffness matrices parameters (building it
+    costs seconds): its objective, constraints and their derivatives are those of the NLP
+    with the matrices as constants to the last bit, and so are its answers, round after
+    round; a family of another form is built the constant way."""
+    import casadi as ca
+
+    from calibration.optimisers import refine as r
+
+    family = _ReducedBox(1)
+    p_start, targets = np.array([1.0, 0.7, 1.3]), {"mode_0": 3.9, "mode_2": 4.6}
+    w = tuple(2 * np.pi * f for f in targets.values())
+    solver, values = r._reused_nlp(family, p_start, w, 1e-6, 1e-14, 500)
+    x = ca.SX.sym("x", 3)
+    p = x * ca.DM(p_start)
+    K = ca.DM(family.K0)
+    for j, name in enumerate(family.names):
+        K = K + p[j] * ca.DM(family.K_unit[name])
+    constant = r._nlp(x, ca.SX(ca.DM(np.eye(12))), K, w, 1e-6, 1e-14, 500)
+    z, lam = np.random.default_rng(2).standard_normal(29), np.random.default_rng(3).standard_normal(26)
+    z[3:5] = [600.0, 800.0]
+    for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l"):
+        args = {"x": z, "lam_f": 1.0, "lam_g": lam}
+        ours, theirs = solver.get_function(name), constant.get_function(name)
+        got = ours.call({**{k: v for k, v in args.items() if k in ours.name_in()}, "p": values["p"]})
+        want = theirs.call({k: v for k, v in args.items() if k in theirs.name_in()})
+        for key in want:
+            assert np.array_equal(np.array(got[key]), np.array(want[key])), (name, key)
+    bounds = (0.5 * p_start, 1.5 * p_start)
+    reused = [r.refine(_ReducedBox(seed), p_start, targets, *bounds, step_weight=1e-6) for seed in (1, 4)]
+    assert r._reused_nlp(_ReducedBox(4), p_start, w, 1e-6, 1e-14, 500)[0] is solver  # one NLP for both
+    monkeypatch.setattr(r, "_reused_nlp", lambda *args: None)
+    for seed, got in zip((1, 4), reused):
+        want = r.refine(_ReducedBox(seed), p_start, targets, *bounds, step_weight=1e-6)
+        assert np.array_equal(got.parameters, want.parameters) and got.status == want.status
+    car = LinearFamily.of_car(INTERCITY_TRAILER)  # its mass varies
+    assert r._reused_nlp(car, np.ones(len(car.names)), w, 0.0, 1e-14, 500) is None

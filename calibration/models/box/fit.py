@@ -191,12 +191,30 @@ class BoxFit:
         self.min_carbody_share = float(min_carbody_share)
         self.min_mac = float(min_mac)
         self._M_carbody = carbody_mass_matrix(model) if self.min_carbody_share > 0 else None
+        self._solved: dict = {}  # (p's bytes, n) -> the full model's modes there, the last few
+
+    # -- the full model's modes ----------------------------------------------------------
+    def _full_modes(self, p, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`full_modes` of this fit's model, the last few points' kept: a point is
+        checked on the full model and the basis is then rebuilt there (the swarm's best, a
+        refinement round's end), otherwise the same eigen-solve again. The arrays are
+        shared, so read-only."""
+        key = (np.asarray(p, float).tobytes(), n)
+        if key not in self._solved:
+            f, X = full_modes(self.model, p, n)
+            f.setflags(write=False)
+            X.setflags(write=False)
+            if len(self._solved) >= 4:
+                del self._solved[next(iter(self._solved))]
+            self._solved[key] = f, X
+        return self._solved[key]
 
     # -- reduced basis ----------------------------------------------------------------
     def rebuild(self, p) -> None:
         p = np.asarray(p, float)
         self.use(ReducedFamily.build(self.model, p[None, :], modes_per_sample=self.n_modes, size=self.basis_size,
-                                     derivatives=self.derivatives), p)
+                                     derivatives=self.derivatives,
+                                     modes=lambda _, q, n: self._full_modes(q, n)), p)
 
     def use(self, family: ReducedFamily, centre) -> None:
         """Evaluate on ``family`` from now on (e.g. one basis for a whole parameter box);
@@ -345,7 +363,7 @@ class BoxFit:
 
     def _full_check(self, p):
         p = np.asarray(p, float)
-        f, X = full_modes(self.model, p, self.n_modes)
+        f, X = self._full_modes(p, self.n_modes)
         share = None if self._M_carbody is None else np.einsum("dm,dm->m", X, self._M_carbody @ X)[None]
         idx, best = self._partners(f[None], (self.sensors @ X)[None], share)
         idx, best = idx[0], best[0]

@@ -94,20 +94,21 @@ class ReducedFamily:
 
     @classmethod
     def build(cls, model: BoxModel, points, *, modes_per_sample: int = 30, size: int = 60,
-              derivatives: int = 0) -> "ReducedFamily":
+              derivatives: int = 0, modes=full_modes) -> "ReducedFamily":
         """Basis from the lowest ``modes_per_sample`` modes at each parameter row of
         ``points``, each with the static responses K(p)^-1 K_i phi_k of its lowest
         ``derivatives`` modes (the directions a first-order change of parameter i moves
         mode k in), compressed to ``size`` vectors. The first point's modes are kept
         exactly. (One basis for a whole 0.5-2 box, from modes at Latin-hypercube points,
         was 0.8-4 % off with 60-120 vectors; a basis around the point of interest, rebuilt
-        as that point moves, is 0.03 % off over +-5 % of it.)"""
+        as that point moves, is 0.03 % off over +-5 % of it.) ``modes``: :func:`full_modes`,
+        or a caller's function giving the same (one that keeps the modes it solved for)."""
         points = np.atleast_2d(np.asarray(points, float))
         M = model.M
         primary = None  # the modes at the first point stay in the basis exactly
         blocks = []
         for p in points:
-            _, X = full_modes(model, p, modes_per_sample)
+            _, X = modes(model, p, modes_per_sample)
             if primary is None:
                 primary = X
             else:
