@@ -37,15 +37,14 @@ def _integrate_twice(x: np.ndarray, step: float, band: tuple[float, float]) -> n
     return np.fft.irfft(out, nfft)[:n]
 
 
-def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.ndarray, np.ndarray]:
-    """(distance [m], level [m]) in ``band`` from the pass's axle-box channels; ``wheel_x``
-    [m] the wheelsets' positions from the car's centre (wheelset 1 leads)."""
+def _axle_level(ps: Pass, wheel_x: np.ndarray, limits: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(distance [m], level [m]): the axle boxes' double integral within the wavelengths
+    ``limits`` [m], each axle placed at its wheelset and the two averaged, on the grid of
+    wheelset 1's positions."""
     axles = [c for c in ps.channels if c.kind == "axle"]
     if not axles:
         raise ValueError("the pass has no axle-box channel (read it with axle_boxes=True)")
     step = float(ps.s[1] - ps.s[0])
-    lo, hi = BAND_WAVELENGTHS_M[band]
-    limits = (max(lo / 2, 2 * step), 2 * hi)  # integrated wide, then filtered as every other estimate
     grid = ps.s + wheel_x[0]
     levels = []
     for c in axles:
@@ -53,7 +52,17 @@ def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.
         r = _integrate_twice(acc / ps.v ** 2, step, limits)
         r = _integrate_twice((acc - ps.a * np.gradient(r, step)) / ps.v ** 2, step, limits)
         levels.append(np.interp(grid, ps.s + wheel_x[c.wheelset - 1], r))
-    return grid, band_filter(np.mean(levels, axis=0), band, step)
+    return grid, np.mean(levels, axis=0)
+
+
+def inertial_level(ps: Pass, wheel_x: np.ndarray, band: str = "D1") -> tuple[np.ndarray, np.ndarray]:
+    """(distance [m], level [m]) in ``band`` from the pass's axle-box channels; ``wheel_x``
+    [m] the wheelsets' positions from the car's centre (wheelset 1 leads)."""
+    step = float(ps.s[1] - ps.s[0])
+    lo, hi = BAND_WAVELENGTHS_M[band]
+    # integrated wide, then filtered as every other estimate
+    grid, level = _axle_level(ps, wheel_x, (max(lo / 2, 2 * step), 2 * hi))
+    return grid, band_filter(level, band, step)
 
 
 def _lowpass_distance(x: np.ndarray, wavelength: float, step: float) -> np.ndarray:
@@ -68,15 +77,7 @@ def blend(pp: PassProfile, ps: Pass, wheel_x: np.ndarray, crossover: float) -> P
     L of the filter's level plus the integral minus L of it), so nothing is counted twice.
     The error draws stay the filter's: the standard deviation does not cover the change."""
     step = float(ps.s[1] - ps.s[0])
-    axles = [c for c in ps.channels if c.kind == "axle"]
-    grid = ps.s + wheel_x[0]
-    levels = []
-    for c in axles:
-        acc = c.values - np.mean(c.values)
-        r = _integrate_twice(acc / ps.v ** 2, step, (max(1.5, 2 * step), 4 * crossover))
-        r = _integrate_twice((acc - ps.a * np.gradient(r, step)) / ps.v ** 2, step, (max(1.5, 2 * step),
-                                                                                     4 * crossover))
-        levels.append(np.interp(grid, ps.s + wheel_x[c.wheelset - 1], r))
-    short = np.interp(pp.distance, grid, np.mean(levels, axis=0))
+    grid, level = _axle_level(ps, wheel_x, (max(1.5, 2 * step), 4 * crossover))
+    short = np.interp(pp.distance, grid, level)
     short = short - _lowpass_distance(short, crossover, step)
     return replace(pp, level=_lowpass_distance(pp.level, crossover, step) + short)
